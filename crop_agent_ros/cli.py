@@ -1,0 +1,47 @@
+"""``crop-sim``: one command line for every job. Each sub-command lives in its own module, which
+provides ``add_arguments(parser)`` and ``run(args) -> int``; modules load only when their command runs,
+so ``crop-sim validate`` never pays for torch or rclpy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# command -> (module, one-line help)
+COMMANDS = {
+    "simulate": ("crop_sim_ros.simulate", "grow one season on a scenario and summarise it (with a plot)"),
+    "validate": ("crop_sim_ros.validation.cli", "run the SIMPLE reference experiments and report RRMSE"),
+    "fit-weather": ("crop_sim_ros.weather.fit", "fit the weather generator's parameters to observed files"),
+    "bench": ("crop_sim_ros.bench", "benchmark the model and the environment (field-days per second)"),
+    "train": ("crop_agent_ros.train", "train a PPO irrigation policy (Stable-Baselines3)"),
+    "evaluate": ("crop_agent_ros.evaluate", "evaluate policies on held-out seasons"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="crop-sim", description=__doc__.split("\n\n")[0])
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, (module, help_text) in COMMANDS.items():
+        sub = commands.add_parser(name, help=help_text, description=help_text)
+        sub.set_defaults(_module=module)
+        try:
+            importlib.import_module(module).add_arguments(sub)
+        except ModuleNotFoundError as error:
+            if error.name != module:
+                raise
+            sub.set_defaults(_missing=f"command {name!r} is not available: module {module} is missing")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if getattr(args, "_missing", None):
+        print(args._missing, file=sys.stderr)
+        return 2
+    return int(importlib.import_module(args._module).run(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
