@@ -47,21 +47,21 @@ KG_HA_PER_G_M2 = 10.0
 
 # --- Response functions (each usable on scalars or arrays) -------------------------------------------
 
-def thermal_time_increment(tmean_degc, base_temperature_degc):
+def thermal_time_increment(tmean_degc, base_temperature_degc, xp=np):
     """dTT = max(Tmean - Tbase, 0), degC d."""
-    return np.maximum(tmean_degc - base_temperature_degc, 0.0)
+    return xp.maximum(tmean_degc - base_temperature_degc, 0.0)
 
 
-def temperature_response(tmean_degc, base_temperature_degc, optimal_temperature_degc):
+def temperature_response(tmean_degc, base_temperature_degc, optimal_temperature_degc, xp=np):
     """f_temp: 0 below Tbase, linear to 1 at Topt, 1 above."""
     ramp = (tmean_degc - base_temperature_degc) / (optimal_temperature_degc - base_temperature_degc)
-    return np.clip(ramp, 0.0, 1.0)
+    return xp.clip(ramp, 0.0, 1.0)
 
 
-def heat_response(tmax_degc, heat_stress_onset_degc, extreme_heat_degc):
+def heat_response(tmax_degc, heat_stress_onset_degc, extreme_heat_degc, xp=np):
     """f_heat on TMAX: 1 up to Theat, linear to 0 at Textreme, 0 above."""
     ramp = 1.0 - (tmax_degc - heat_stress_onset_degc) / (extreme_heat_degc - heat_stress_onset_degc)
-    return np.clip(ramp, 0.0, 1.0)
+    return xp.clip(ramp, 0.0, 1.0)
 
 
 def co2_response(co2_ppm, co2_sensitivity_per_100ppm):
@@ -70,22 +70,23 @@ def co2_response(co2_ppm, co2_sensitivity_per_100ppm):
     return 1.0 + co2_sensitivity_per_100ppm * excess_per_100ppm
 
 
-def water_response(arid, water_stress_sensitivity):
+def water_response(arid, water_stress_sensitivity, xp=np):
     """f_water = max(0, 1 - S_water * ARID)."""
-    return np.maximum(0.0, 1.0 - water_stress_sensitivity * arid)
+    return xp.maximum(1.0 - water_stress_sensitivity * arid, 0.0)
 
 
-def canopy_water_response(f_water):
+def canopy_water_response(f_water, xp=np):
     """fsw: 1 while f_water > 0.1, else 0.9 + f_water (severe drought shrinks the canopy)."""
-    return np.where(f_water > 0.1, 1.0, 0.9 + f_water)
+    return xp.where(f_water > 0.1, 1.0, 0.9 + f_water)
 
 
-def canopy_cover(thermal_time_degc_d, i50a_degc_d, thermal_time_to_maturity_degc_d, i50b_degc_d, fsolar_max):
+def canopy_cover(thermal_time_degc_d, i50a_degc_d, thermal_time_to_maturity_degc_d, i50b_degc_d, fsolar_max,
+                 xp=np):
     """min(growth curve, senescence curve) of radiation interception, before the water response."""
-    grow = fsolar_max / (1.0 + np.exp(-0.01 * (thermal_time_degc_d - i50a_degc_d)))
-    senesce = fsolar_max / (1.0 + np.exp(0.01 * (thermal_time_degc_d -
+    grow = fsolar_max / (1.0 + xp.exp(-0.01 * (thermal_time_degc_d - i50a_degc_d)))
+    senesce = fsolar_max / (1.0 + xp.exp(0.01 * (thermal_time_degc_d -
                                                  (thermal_time_to_maturity_degc_d - i50b_degc_d))))
-    return np.minimum(np.minimum(grow, senesce), 1.0)
+    return xp.minimum(xp.minimum(grow, senesce), 1.0)
 
 
 def runoff_retention_mm(runoff_curve_number):
@@ -105,19 +106,19 @@ class WaterFluxes:
 
 
 def water_balance(plant_available_water_mm, water_input_mm, et0_mm, retention_mm,
-                  available_water_capacity, deep_drainage_coefficient, root_zone_depth_mm) -> WaterFluxes:
+                  available_water_capacity, deep_drainage_coefficient, root_zone_depth_mm, xp=np) -> WaterFluxes:
     """Woli et al. (2012) bucket: runoff (SCS), deep drainage above capacity, transpiration, ARID.
 
     ``water_input_mm`` is rain plus irrigation. Conserves water exactly:
     water_input = runoff + drainage + transpiration + (W_end - W_start).
     """
-    excess = np.maximum(water_input_mm - 0.2 * retention_mm, 0.0)
+    excess = xp.maximum(water_input_mm - 0.2 * retention_mm, 0.0)
     runoff = excess * excess / (water_input_mm + 0.8 * retention_mm)
     after_infiltration = plant_available_water_mm + water_input_mm - runoff
     capacity_mm = available_water_capacity * root_zone_depth_mm
-    drainage = deep_drainage_coefficient * np.maximum(after_infiltration - capacity_mm, 0.0)
+    drainage = deep_drainage_coefficient * xp.maximum(after_infiltration - capacity_mm, 0.0)
     after_drainage = after_infiltration - drainage
-    transpiration = np.minimum(WATER_UPTAKE_COEFFICIENT * after_drainage, et0_mm)
+    transpiration = xp.minimum(WATER_UPTAKE_COEFFICIENT * after_drainage, et0_mm)
     arid = 1.0 - transpiration / et0_mm
     return WaterFluxes(runoff, drainage, transpiration, after_drainage - transpiration, arid)
 
@@ -313,53 +314,57 @@ def initial_state(params: FieldParameters) -> CropState:
     )
 
 
-def step(params: FieldParameters, state: CropState, weather: DailyWeather,
-         irrigation_mm) -> tuple[CropState, DailyFluxes]:
+def step(params: FieldParameters, state: CropState, weather: DailyWeather, irrigation_mm,
+         xp=np) -> tuple[CropState, DailyFluxes]:
     """Advance every field by one day: returns the next day's state and this day's fluxes.
 
     ``irrigation_mm`` (float or array (N,)) is applied today with the rain. It must be finite and >= 0:
     this function does not check (it is the hot path); :func:`check_irrigation` does, and every face
     (environment, node, command line) calls it.
+
+    ``xp`` is the array namespace: numpy for N fields, or :data:`SCALAR_MATH` for one field held as Python
+    floats (:func:`scalar_parameters`, :func:`scalar_state`), which avoids numpy's per-call overhead and
+    gives bit-identical results.
     """
     p = params
     tmean = 0.5 * (weather.tmax_degc + weather.tmin_degc)
-    dtt = thermal_time_increment(tmean, p.base_temperature_degc)
-    f_temp = temperature_response(tmean, p.base_temperature_degc, p.optimal_temperature_degc)
-    f_heat = heat_response(weather.tmax_degc, p.heat_stress_onset_degc, p.extreme_heat_degc)
+    dtt = thermal_time_increment(tmean, p.base_temperature_degc, xp)
+    f_temp = temperature_response(tmean, p.base_temperature_degc, p.optimal_temperature_degc, xp)
+    f_heat = heat_response(weather.tmax_degc, p.heat_stress_onset_degc, p.extreme_heat_degc, xp)
     water_input = weather.rain_mm + irrigation_mm
     water = water_balance(state.plant_available_water_mm, water_input, weather.et0_mm, p.runoff_retention_mm,
-                          p.available_water_capacity, p.deep_drainage_coefficient, p.root_zone_depth_mm)
-    f_water = water_response(water.arid, p.water_stress_sensitivity)
+                          p.available_water_capacity, p.deep_drainage_coefficient, p.root_zone_depth_mm, xp)
+    f_water = water_response(water.arid, p.water_stress_sensitivity, xp)
     growth = (KG_HA_PER_G_M2 * p.radiation_use_efficiency * p.co2_factor * state.fsolar * weather.srad_mj_m2
-              * f_temp * np.minimum(f_heat, f_water))
+              * f_temp * xp.minimum(f_heat, f_water))
     next_tt = state.thermal_time_degc_d + dtt
 
     # Maturity day d: the last day with TT <= Tsum, the day fSolar falls to <= 0.005, or the harvest day.
     senesced = ((state.days_since_sowing > 0) & (state.fsolar < state.fsolar_previous)
                 & (state.fsolar <= SENESCENCE_FSOLAR))
-    matures = ~state.mature & ((next_tt > p.thermal_time_to_maturity_degc_d) | senesced
-                               | (state.days_since_sowing >= p.harvest_day))
-    grows = ~(state.mature | matures)
+    matures = xp.logical_not(state.mature) & ((next_tt > p.thermal_time_to_maturity_degc_d) | senesced
+                                              | (state.days_since_sowing >= p.harvest_day))
+    grows = xp.logical_not(state.mature | matures)
 
     # The larger of the drought and heat increments (not their sum); both lag one day.
-    next_i50b = np.maximum(np.maximum(state.i50b_degc_d + p.i50_max_water_degc_d * (1.0 - f_water), 0.0),
-                           np.maximum(state.i50b_degc_d + p.i50_max_heat_degc_d * (1.0 - f_heat), 0.0))
+    next_i50b = xp.maximum(xp.maximum(state.i50b_degc_d + p.i50_max_water_degc_d * (1.0 - f_water), 0.0),
+                           xp.maximum(state.i50b_degc_d + p.i50_max_heat_degc_d * (1.0 - f_heat), 0.0))
     next_fsolar = (canopy_cover(next_tt, p.i50a_degc_d, p.thermal_time_to_maturity_degc_d, state.i50b_degc_d,
-                                p.fsolar_max)
-                   * np.minimum(canopy_water_response(f_water), 1.0))
+                                p.fsolar_max, xp)
+                   * xp.minimum(canopy_water_response(f_water, xp), 1.0))
 
-    growth = np.where(grows, growth, 0.0)
-    dtt = np.where(grows, dtt, 0.0)
+    growth = xp.where(grows, growth, 0.0)
+    dtt = xp.where(grows, dtt, 0.0)
     next_state = CropState(
         days_since_sowing=state.days_since_sowing + 1,
         thermal_time_degc_d=state.thermal_time_degc_d + dtt,
         biomass_kg_ha=state.biomass_kg_ha + growth,
-        fsolar=np.where(grows, next_fsolar, state.fsolar),
-        fsolar_previous=np.where(grows, state.fsolar, state.fsolar_previous),
-        i50b_degc_d=np.where(grows, next_i50b, state.i50b_degc_d),
+        fsolar=xp.where(grows, next_fsolar, state.fsolar),
+        fsolar_previous=xp.where(grows, state.fsolar, state.fsolar_previous),
+        i50b_degc_d=xp.where(grows, next_i50b, state.i50b_degc_d),
         plant_available_water_mm=water.plant_available_water_mm,
         mature=state.mature | matures,
-        maturity_day=np.where(matures, state.days_since_sowing, state.maturity_day),
+        maturity_day=xp.where(matures, state.days_since_sowing, state.maturity_day),
     )
     fluxes = DailyFluxes(
         thermal_time_increment_degc_d=dtt,
@@ -369,6 +374,52 @@ def step(params: FieldParameters, state: CropState, weather: DailyWeather,
         transpiration_mm=water.transpiration_mm, matured=matures,
     )
     return next_state, fluxes
+
+
+class ScalarMath:
+    """The few numpy functions :func:`step` uses, for one field held as Python floats and bools.
+
+    ``exp`` goes through numpy so that the scalar and array paths agree to the bit (numpy's vectorised
+    exp and libm's can differ in the last place).
+    """
+
+    @staticmethod
+    def maximum(a, b):
+        return a if a >= b else b
+
+    @staticmethod
+    def minimum(a, b):
+        return a if a <= b else b
+
+    @staticmethod
+    def clip(x, low, high):
+        return low if x < low else (high if x > high else x)
+
+    @staticmethod
+    def where(condition, if_true, if_false):
+        return if_true if condition else if_false
+
+    @staticmethod
+    def logical_not(x):
+        return not x
+
+    @staticmethod
+    def exp(x):
+        return float(np.exp(x))
+
+
+SCALAR_MATH = ScalarMath()
+
+
+def scalar_parameters(params: FieldParameters, field: int = 0) -> FieldParameters:
+    """One field of ``params`` as Python floats, for ``step(..., xp=SCALAR_MATH)``."""
+    return FieldParameters(**{f.name: float(np.broadcast_to(getattr(params, f.name), (params.n_fields,))[field])
+                              for f in fields(FieldParameters)})
+
+
+def scalar_state(state: CropState, field: int = 0) -> CropState:
+    """One field of ``state`` as Python scalars (int, float, bool), for ``step(..., xp=SCALAR_MATH)``."""
+    return CropState(**{f.name: getattr(state, f.name)[field].item() for f in fields(CropState)})
 
 
 MAX_IRRIGATION_MM = 1000.0
