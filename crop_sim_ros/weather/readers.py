@@ -2,7 +2,8 @@
 naming the file, line and column of the first problem.
 
 - :func:`read_dssat_wth`: DSSAT ``.WTH`` (header with INSI, LAT, LONG, ELEV, ...; DATE as YYDDD or YYYYDDD;
-  SRAD MJ m-2, TMAX/TMIN degC, RAIN mm; optional DEWP degC, WIND km d-1, VPRS/VAPR hPa/kPa); -99 is missing.
+  SRAD MJ m-2, TMAX/TMIN degC, RAIN mm; optional DEWP degC, WIND km d-1, VPRS/VAPR hPa/kPa); -99 and blank
+  fixed-width cells are missing; several years may come as blocks out of order.
 - :func:`read_agweathernet_csv`: AgWeatherNet daily CSV export (units in the header; "NA" is missing).
 """
 
@@ -18,6 +19,10 @@ import numpy as np
 from .series import Site, WeatherError, WeatherSeries, make_series, saturation_vapour_pressure_hpa
 
 DSSAT_MISSING = -99.0
+# Width of each column after DATE in DSSAT's fixed layout, characters.
+DSSAT_CELL_WIDTH = 6
+# Ctrl-Z: old DOS editors ended files with it.
+DOS_END_OF_FILE = "\x1a"
 KM_PER_DAY_PER_M_S = 86.4
 # Two-digit DSSAT years up to this belong to the 2000s (the SIMPLE set spans 1970-2009).
 DSSAT_CENTURY_PIVOT = 40
@@ -79,17 +84,15 @@ def read_dssat_wth(path: str | Path) -> WeatherSeries:
                                f"(columns: {' '.join(columns)})")
     dates, line_numbers, rows = [], [], []
     for number, line in enumerate(lines[column_line + 1:], start=column_line + 2):
+        line = line.replace(DOS_END_OF_FILE, "")
         if not line.strip() or line.lstrip().startswith(("!", "*", "@")):
             continue
-        cells = line.split()
-        if len(cells) < len(columns):
-            raise WeatherError(f"{source}, line {number}: {len(cells)} values for {len(columns)} columns "
-                               f"({' '.join(columns)})")
+        cells = _dssat_cells(line, columns, f"{source}, line {number}")
         dates.append(dssat_date(cells[0], f"{source}, line {number}, column DATE"))
         row = []
-        for column, cell in zip(columns[1:], cells[1:len(columns)]):
+        for column, cell in zip(columns[1:], cells[1:]):
             try:
-                value = float(cell)
+                value = float(cell) if cell else math.nan
             except ValueError:
                 raise WeatherError(f"{source}, line {number}, column {column}: {cell!r} is not a number") from None
             row.append(math.nan if value <= DSSAT_MISSING else value)
@@ -97,7 +100,8 @@ def read_dssat_wth(path: str | Path) -> WeatherSeries:
         line_numbers.append(number)
     if not rows:
         raise WeatherError(f"{source}: no daily rows after the column header")
-    table = dict(zip(columns[1:], np.array(rows, dtype=float).T))
+    dates, line_numbers, values = _dssat_calendar(dates, line_numbers, rows, source)
+    table = dict(zip(columns[1:], values.T))
     vap = None
     if "VPRS" in table:
         vap = table["VPRS"]
@@ -114,6 +118,57 @@ def read_dssat_wth(path: str | Path) -> WeatherSeries:
                        tmax_degc=table["TMAX"], tmin_degc=table["TMIN"], srad_mj_m2=table["SRAD"],
                        rain_mm=table["RAIN"], vap_hpa=vap, wind_m_s=wind,
                        tavg_degc=table.get("TAVG"))
+
+
+def _dssat_cells(line: str, columns: list[str], where: str) -> list[str]:
+    """The cells of one DSSAT data line, one per column ('' where a fixed-width cell is blank).
+
+    A line with a value for every column splits on white space. A shorter line is read by DSSAT's fixed
+    layout (DATE as wide as its first value, then DSSAT_CELL_WIDTH characters per column, right-aligned):
+    its blank cells are missing values. A short line that does not fit that layout is an error.
+    """
+    cells = line.split()
+    if len(cells) >= len(columns):
+        return cells[:len(columns)]
+    date_width = len(line) - len(line.lstrip()) + len(cells[0])
+    fixed = [line[:date_width].strip()] + [
+        line[date_width + DSSAT_CELL_WIDTH * i: date_width + DSSAT_CELL_WIDTH * (i + 1)].strip()
+        for i in range(len(columns) - 1)]
+    beyond = line[date_width + DSSAT_CELL_WIDTH * (len(columns) - 1):].strip()
+    misaligned = next((i for i, cell in enumerate(fixed) if " " in cell), None)
+    if beyond or misaligned is not None or [cell for cell in fixed if cell] != cells:
+        column = columns[misaligned] if misaligned is not None else columns[len(cells)]
+        raise WeatherError(f"{where}, column {column}: {len(cells)} values for {len(columns)} columns "
+                           f"({' '.join(columns)}) and the line does not fit DSSAT's fixed layout of "
+                           f"{DSSAT_CELL_WIDTH}-character columns")
+    return fixed
+
+
+def _dssat_calendar(dates: list[date], line_numbers: list[int], rows: list[list[float]],
+                    source: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows placed on consecutive calendar days: dates, line numbers (0 for a day the file lacks) and
+    values (NaN for a day the file lacks), first to last day of the file.
+
+    A file may hold several years in blocks out of order (AUHU9801.WTH: 1998, 1999, then 1997-12-31);
+    sorting by date puts them together. A day missing between blocks (IAWM9901.WTH jumps from
+    1997-12-31 to 1999-01-01) is a missing value, which ``WeatherSeries.require`` reports if a season
+    needs it. A day given twice (overlapping blocks) is a WeatherError naming both lines.
+    """
+    first = min(dates)
+    offsets = np.array([(day - first).days for day in dates])
+    order = np.argsort(offsets, kind="stable")
+    repeated = np.flatnonzero(np.diff(offsets[order]) == 0)
+    if repeated.size:
+        earlier, later = sorted((order[repeated[0]], order[repeated[0] + 1]))
+        raise WeatherError(f"{source}, line {line_numbers[later]}, column DATE: {dates[later]} is already on "
+                           f"line {line_numbers[earlier]} (blocks of days overlap)")
+    days = int(offsets.max()) + 1
+    calendar = np.datetime64(first, "D") + np.arange(days)
+    lines = np.zeros(days, dtype=np.int64)
+    lines[offsets] = line_numbers
+    values = np.full((days, len(rows[0])), np.nan)
+    values[offsets] = rows
+    return calendar, lines, values
 
 
 # AgWeatherNet export: the header repeats names ("Min°C" for air and soil), so columns go by position.

@@ -1,0 +1,242 @@
+"""``crop-sim fit-weather``: fit :class:`GeneratorParameters` to observed daily weather files, write them as
+JSON and print the fitted generator's monthly statistics next to the observed ones.
+
+Every monthly statistic uses the days of its own calendar month when there are at least
+``MIN_DAYS_PER_STATISTIC`` of them; otherwise the nearest months (cyclically, +-1, +-2, ...) are pooled in
+until there are. Months without any observation of a variable (vapour pressure and wind outside
+April-September, when only the AgWeatherNet file has them) so take the nearest observed month; the JSON
+metadata lists every such pooling. Wet-day temperature and radiation statistics pool anomalies from the
+dry-day mean of each day's own month, so pooling does not mix in the neighbour's seasonal level.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+
+from .generator import (BENTON_PARAMETERS_FILE, MONTHS, RESIDUAL_VARIABLES, GeneratorParameters,
+                        conditional_field_names, dew_point_degc, generate_seasons)
+from .readers import read_agweathernet_csv, read_dssat_wth
+from .series import WeatherError, WeatherSeries
+
+DEFAULT_DATA_DIR = Path("../shared/data")
+DEFAULT_AGWEATHERNET = ("agweathernet/benton_e_2000-04-01_2000-09-30.csv",)
+DEFAULT_DSSAT = tuple(f"simple_r_inputs/Weather/WAPA{year}01.WTH" for year in (92, 93, 94, 95))
+# 0.01 inch: the resolution of the tipping-bucket gauges behind both sources.
+WET_DAY_THRESHOLD_MM = 0.25
+MIN_DAYS_PER_STATISTIC = 10
+# Mean month length (February of a leap year counted a quarter), days: monthly totals = daily mean x this.
+MONTH_LENGTH_DAYS = np.array([31, 28.25, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
+MONTH_NAMES = ("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA_DIR,
+                        help="reference data directory the file names are relative to (default: %(default)s)")
+    parser.add_argument("--agweathernet", nargs="*", default=list(DEFAULT_AGWEATHERNET), metavar="CSV",
+                        help="AgWeatherNet daily CSV files (default: the Benton E. 2000 season)")
+    parser.add_argument("--dssat", nargs="*", default=list(DEFAULT_DSSAT), metavar="WTH",
+                        help="DSSAT .WTH files (default: Paterson, WA, 1992-1995)")
+    parser.add_argument("--name", default="benton", help="label of the fitted parameters (default: %(default)s)")
+    parser.add_argument("--out", type=Path, default=BENTON_PARAMETERS_FILE,
+                        help="JSON file to write (default: the packaged benton_generator.json)")
+    parser.add_argument("--check-seasons", type=int, default=500, metavar="N",
+                        help="years generated to compare with the observations (default: %(default)s)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the comparison run (default: %(default)s)")
+
+
+def load_observed(data_dir: Path, agweathernet=DEFAULT_AGWEATHERNET, dssat=DEFAULT_DSSAT) -> list[WeatherSeries]:
+    """The observed series, AgWeatherNet files first (their site becomes the fitted site); each series'
+    source is its file name relative to ``data_dir``, so the fitted metadata does not depend on where it ran.
+    """
+    return ([replace(read_agweathernet_csv(Path(data_dir) / name), source=str(name)) for name in agweathernet]
+            + [replace(read_dssat_wth(Path(data_dir) / name), source=str(name)) for name in dssat])
+
+
+class _Days:
+    """All observed days pooled: variables, calendar month (0-11), wetness and yesterday's wetness."""
+
+    def __init__(self, series_list: list[WeatherSeries], threshold_mm: float) -> None:
+        def stack(values) -> np.ndarray:
+            return np.concatenate([np.asarray(v, dtype=float) for v in values])
+
+        self.month = np.concatenate([s.dates.astype("datetime64[M]").astype(int) % MONTHS for s in series_list])
+        for name in ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "vap_hpa", "wind_m_s"):
+            setattr(self, name, stack(getattr(s, name) for s in series_list))
+        self.has_rain = np.isfinite(self.rain_mm)
+        self.wet = self.has_rain & (self.rain_mm >= threshold_mm)
+        self.dry = self.has_rain & ~self.wet
+        # Yesterday in the same series, with a rain observation.
+        first = np.zeros(len(self.month), dtype=bool)
+        first[np.cumsum([0] + [len(s) for s in series_list[:-1]])] = True
+        self.has_yesterday = ~first & np.roll(self.has_rain, 1)
+        self.wet_yesterday = np.roll(self.wet, 1) & self.has_yesterday
+
+
+def pooled_months(month_of_day: np.ndarray, selected: np.ndarray, min_days: int = MIN_DAYS_PER_STATISTIC):
+    """For each month, the months whose ``selected`` days one statistic uses (see the module docstring)."""
+    counts = np.bincount(month_of_day[selected], minlength=MONTHS)
+    if counts.sum() < min_days:
+        raise WeatherError(f"only {counts.sum()} days to fit a statistic that needs {min_days}")
+    result = []
+    for month in range(MONTHS):
+        radius = 0
+        while counts[[(month + d) % MONTHS for d in range(-radius, radius + 1)]].sum() < min_days:
+            radius += 1
+        result.append(sorted({(month + d) % MONTHS for d in range(-radius, radius + 1)
+                              if counts[(month + d) % MONTHS] > 0}))
+    return result
+
+
+class _Fitter:
+    """Monthly statistics with pooling; ``pooling`` records every month that borrowed other months' days."""
+
+    def __init__(self, days: _Days) -> None:
+        self.days = days
+        self.pooling: dict[str, dict[str, list[int]]] = {}
+
+    def monthly(self, label: str, values: np.ndarray, selected: np.ndarray, statistic) -> list:
+        selected = selected & np.isfinite(values)
+        result = []
+        for month, months in enumerate(pooled_months(self.days.month, selected)):
+            if months != [month]:
+                self.pooling.setdefault(label, {})[MONTH_NAMES[month]] = [MONTH_NAMES[m] for m in months]
+            result.append(statistic(values[selected & np.isin(self.days.month, months)]))
+        return result
+
+
+def _gamma_moments(values: np.ndarray) -> tuple[float, float]:
+    """Gamma (shape, scale) by the method of moments: it keeps the mean, hence monthly totals, exact."""
+    mean, variance = float(np.mean(values)), float(np.var(values, ddof=1))
+    return mean * mean / variance, variance / mean
+
+
+def fit_parameters(series_list: list[WeatherSeries], name: str,
+                   threshold_mm: float = WET_DAY_THRESHOLD_MM) -> GeneratorParameters:
+    """Fit the generator to ``series_list`` (pooled by calendar month); the site is the first series'."""
+    days = _Days(series_list, threshold_mm)
+    fitter = _Fitter(days)
+    p_wet_after_dry = fitter.monthly("p_wet_after_dry", days.wet.astype(float),
+                                     days.has_yesterday & ~days.wet_yesterday & days.has_rain, np.mean)
+    p_wet_after_wet = fitter.monthly("p_wet_after_wet", days.wet.astype(float),
+                                     days.wet_yesterday & days.has_rain, np.mean)
+    rain_gamma = fitter.monthly("rain_excess", days.rain_mm - threshold_mm, days.wet, _gamma_moments)
+
+    values: dict = {}
+    residuals = []
+    for variable, column in zip(RESIDUAL_VARIABLES, ("tmax_degc", "tmin_degc", "srad_mj_m2")):
+        observed = getattr(days, column)
+        mean_dry_name, mean_wet_name, sd_dry_name, sd_wet_name = conditional_field_names(variable)
+        mean_dry = np.array(fitter.monthly(mean_dry_name, observed, days.dry, np.mean))
+        sd_dry = np.array(fitter.monthly(sd_dry_name, observed - mean_dry[days.month], days.dry,
+                                         lambda x: float(np.std(x, ddof=1))))
+        anomaly = observed - mean_dry[days.month]
+        mean_wet = mean_dry + fitter.monthly(mean_wet_name, anomaly, days.wet, np.mean)
+        sd_wet = np.array(fitter.monthly(sd_wet_name, anomaly - (mean_wet - mean_dry)[days.month], days.wet,
+                                         lambda x: float(np.std(x, ddof=1))))
+        values.update({mean_dry_name: mean_dry, mean_wet_name: mean_wet, sd_dry_name: sd_dry, sd_wet_name: sd_wet})
+        residuals.append(np.where(days.wet, (observed - mean_wet[days.month]) / sd_wet[days.month],
+                                  (observed - mean_dry[days.month]) / sd_dry[days.month]))
+    residuals = np.array(residuals)  # (3, days)
+    today = np.all(np.isfinite(residuals), axis=0)
+    lag0 = np.corrcoef(residuals[:, today])
+    pairs = np.flatnonzero(today & np.roll(today, 1) & days.has_yesterday)
+    lag1 = np.array([[np.corrcoef(residuals[i, pairs], residuals[j, pairs - 1])[0, 1] for j in range(3)]
+                     for i in range(3)])
+
+    depression = days.tmin_degc - dew_point_degc(days.vap_hpa)
+    everyday = np.ones(len(days.month), dtype=bool)
+    depression_mean = fitter.monthly("dew_point_depression_mean_degc", depression, everyday, np.mean)
+    depression_sd = fitter.monthly("dew_point_depression_sd_degc", depression, everyday,
+                                   lambda x: float(np.std(x, ddof=1)))
+    wind_gamma = fitter.monthly("wind", days.wind_m_s, everyday, _gamma_moments)
+
+    metadata = {
+        "fitted_by": "crop-sim fit-weather (crop_sim_ros.weather.fit)",
+        "data": "sources are relative to the reference data directory (shared/data, see its README.md)",
+        "fitted_from": [{"source": s.source, "first_day": str(s.start), "last_day": str(s.end), "days": len(s),
+                         "variables": [v for v in ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "vap_hpa",
+                                                   "wind_m_s") if np.isfinite(getattr(s, v)).any()]}
+                        for s in series_list],
+        "min_days_per_statistic": MIN_DAYS_PER_STATISTIC,
+        "pooled_months": fitter.pooling,
+        "note": "monthly statistics pool all files' days of a calendar month; a month listed under "
+                "pooled_months had fewer than min_days_per_statistic own days of that variable and uses "
+                "the listed (nearest) months' days instead",
+    }
+    return GeneratorParameters(
+        name=name, site=series_list[0].site, wet_day_threshold_mm=threshold_mm,
+        p_wet_after_dry=p_wet_after_dry, p_wet_after_wet=p_wet_after_wet,
+        rain_excess_shape=[g[0] for g in rain_gamma], rain_excess_scale_mm=[g[1] for g in rain_gamma],
+        residual_lag0_correlation=lag0, residual_lag1_correlation=lag1,
+        dew_point_depression_mean_degc=depression_mean, dew_point_depression_sd_degc=depression_sd,
+        wind_shape=[g[0] for g in wind_gamma], wind_scale_m_s=[g[1] for g in wind_gamma],
+        metadata=metadata, **values)
+
+
+# name -> (how it is computed, unit)
+STATISTICS = {
+    "tmax_degc": ("mean TMAX", "degC"),
+    "tmin_degc": ("mean TMIN", "degC"),
+    "srad_mj_m2": ("mean SRAD", "MJ/m2/d"),
+    "wet_fraction": ("fraction of wet days", "-"),
+    "rain_total_mm": ("mean monthly rain total", "mm"),
+    "vap_hpa": ("mean vapour pressure", "hPa"),
+    "wind_m_s": ("mean wind at 2 m", "m/s"),
+}
+
+
+def monthly_statistics(series_list: list[WeatherSeries],
+                       threshold_mm: float = WET_DAY_THRESHOLD_MM) -> dict[str, np.ndarray]:
+    """Per calendar month (12 values, NaN without data) the statistics of :data:`STATISTICS`.
+
+    The monthly rain total is the mean daily rain times the mean month length.
+    """
+    days = _Days(series_list, threshold_mm)
+
+    def by_month(values: np.ndarray) -> np.ndarray:
+        finite = np.isfinite(values)
+        counts = np.bincount(days.month[finite], minlength=MONTHS)
+        sums = np.bincount(days.month[finite], weights=values[finite], minlength=MONTHS)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return sums / np.where(counts > 0, counts, np.nan)
+
+    return {"tmax_degc": by_month(days.tmax_degc), "tmin_degc": by_month(days.tmin_degc),
+            "srad_mj_m2": by_month(days.srad_mj_m2),
+            "wet_fraction": by_month(np.where(days.has_rain, days.wet, np.nan)),
+            "rain_total_mm": by_month(days.rain_mm) * MONTH_LENGTH_DAYS,
+            "vap_hpa": by_month(days.vap_hpa), "wind_m_s": by_month(days.wind_m_s)}
+
+
+def comparison_table(observed: dict[str, np.ndarray], generated: dict[str, np.ndarray]) -> str:
+    """A text table, one row per month, "observed / generated" for each statistic."""
+    header = "month " + " ".join(f"{name:>17}" for name in STATISTICS)
+    lines = [header, "      " + " ".join(f"{'obs / gen ' + unit:>17}" for _, unit in STATISTICS.values())]
+    for month in range(MONTHS):
+        cells = []
+        for name in STATISTICS:
+            obs, gen = observed[name][month], generated[name][month]
+            cells.append(f"{'-' if np.isnan(obs) else f'{obs:.2f}':>8} / {gen:6.2f}")
+        lines.append(f"{MONTH_NAMES[month]:<5} " + " ".join(f"{cell:>17}" for cell in cells))
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        observed = load_observed(args.data, args.agweathernet, args.dssat)
+        params = fit_parameters(observed, args.name)
+    except WeatherError as error:
+        print(f"fit-weather: {error}")
+        return 1
+    params.to_json(args.out)
+    print(f"wrote {args.out} (fitted from {', '.join(s.source for s in observed)} under {args.data})")
+    for label, months in params.metadata["pooled_months"].items():
+        print(f"  {label}: " + ", ".join(f"{m} from {'+'.join(p)}" for m, p in months.items()))
+    generated = generate_seasons(params, date(2001, 1, 1), 365, args.check_seasons, args.seed)
+    print(f"\nmonthly statistics, observed / generated ({args.check_seasons} years, seed {args.seed}):")
+    print(comparison_table(monthly_statistics(observed), monthly_statistics(generated)))
+    return 0

@@ -1,0 +1,254 @@
+"""A seeded stochastic daily weather generator of Richardson / WGEN type, vectorised over N seasons.
+
+Per calendar month (parameters are monthly steps):
+
+- rain occurrence: a first-order Markov chain, P(wet | yesterday dry) and P(wet | yesterday wet); a day is
+  wet when its rain is at least ``wet_day_threshold_mm``;
+- rain amount on a wet day: the threshold plus a gamma-distributed excess (shape, scale in mm);
+- TMAX, TMIN, SRAD: normal with means and standard deviations that depend on whether the day is wet;
+  their standardized residuals follow the multivariate lag-1 autoregression of Richardson (1981),
+  z_t = A z_(t-1) + B e_t, with A and B from the lag-0 and lag-1 correlation matrices;
+  TMIN <= TMAX is enforced (the two are swapped on the rare day they cross) and SRAD is clipped to
+  [``MIN_SRAD_MJ_M2``, FAO-56 clear-sky radiation Rso = (0.75 + 2e-5 z) Ra] of the site and day;
+- vapour pressure: e0(dew point), dew point = TMIN - a normal dew point depression (monthly mean and
+  standard deviation), capped at the day's mean temperature (TMAX + TMIN) / 2;
+- wind at 2 m: gamma distributed (monthly shape, scale in m s-1).
+
+Internally every variable is a numpy array of shape (days, N); a season is one column. Imports neither
+rclpy, gymnasium nor torch.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field, fields
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+from refet.calcs import ra_daily, rso_simple
+
+from .series import Site, WeatherError, WeatherSeries, make_series, saturation_vapour_pressure_hpa
+
+MONTHS = 12
+# Order of the autocorrelated variables in the residual correlation matrices.
+RESIDUAL_VARIABLES = ("tmax", "tmin", "srad")
+RESIDUAL_UNITS = {"tmax": "degc", "tmin": "degc", "srad": "mj_m2"}
+# SRAD never falls below this (MJ m-2 d-1): even a dark overcast day has some light.
+MIN_SRAD_MJ_M2 = 0.1
+BENTON_PARAMETERS_FILE = Path(__file__).with_name("benton_generator.json")
+
+
+def conditional_field_names(variable: str) -> tuple[str, str, str, str]:
+    """The (mean dry, mean wet, sd dry, sd wet) field names of ``variable`` (tmax, tmin or srad)."""
+    unit = RESIDUAL_UNITS[variable]
+    return (f"{variable}_mean_dry_{unit}", f"{variable}_mean_wet_{unit}",
+            f"{variable}_sd_dry_{unit}", f"{variable}_sd_wet_{unit}")
+
+
+def dew_point_degc(vap_hpa):
+    """Dew point, degC, of the actual vapour pressure ``vap_hpa`` (inverse of FAO-56 eq. 11)."""
+    log_ratio = np.log(np.asarray(vap_hpa, dtype=float) / 6.108)
+    return 237.3 * log_ratio / (17.27 - log_ratio)
+
+
+def clear_sky_radiation_mj_m2(day_of_year, latitude_deg: float, elevation_m: float):
+    """FAO-56 clear-sky radiation Rso = (0.75 + 2e-5 z) Ra, MJ m-2 d-1 (as the Penman-Monteith ET0 uses)."""
+    return rso_simple(ra_daily(np.radians(latitude_deg), np.asarray(day_of_year, dtype=float)), elevation_m)
+
+
+Monthly = tuple[float, ...]
+Matrix3 = tuple[tuple[float, float, float], ...]
+
+
+@dataclass(frozen=True)
+class GeneratorParameters:
+    """Parameters of the weather generator for one site. Monthly fields hold 12 values, January first.
+
+    ============================== ======== ===========================================================
+    Name                           Unit     Description
+    ============================== ======== ===========================================================
+    name                           -        short label used in the source of generated series
+    site                           -        latitude_deg, longitude_deg (north, east), elevation_m
+    wet_day_threshold_mm           mm       a day is wet when rain_mm >= this
+    p_wet_after_dry                -        monthly P(wet today | dry yesterday)
+    p_wet_after_wet                -        monthly P(wet today | wet yesterday)
+    rain_excess_shape              -        monthly gamma shape of (wet-day rain - threshold)
+    rain_excess_scale_mm           mm       monthly gamma scale of (wet-day rain - threshold)
+    tmax_mean_dry_degc             degC     monthly mean TMAX on dry days
+    tmax_mean_wet_degc             degC     monthly mean TMAX on wet days
+    tmax_sd_dry_degc               degC     monthly standard deviation of TMAX on dry days
+    tmax_sd_wet_degc               degC     monthly standard deviation of TMAX on wet days
+    tmin_mean_dry_degc ...         degC     the same four for TMIN
+    srad_mean_dry_mj_m2 ...        MJ m-2   the same four for daily global radiation SRAD
+    residual_lag0_correlation      -        3 x 3 correlation of standardized (TMAX, TMIN, SRAD)
+                                            residuals on the same day
+    residual_lag1_correlation      -        3 x 3 correlation, row: today's residual, column:
+                                            yesterday's
+    dew_point_depression_mean_degc degC     monthly mean of TMIN - dew point
+    dew_point_depression_sd_degc   degC     monthly standard deviation of TMIN - dew point
+    wind_shape                     -        monthly gamma shape of the daily mean wind at 2 m
+    wind_scale_m_s                 m s-1    monthly gamma scale of the daily mean wind at 2 m
+    metadata                       -        free-form provenance (data fitted from, fills); not compared
+    ============================== ======== ===========================================================
+    """
+
+    name: str
+    site: Site
+    wet_day_threshold_mm: float
+    p_wet_after_dry: Monthly
+    p_wet_after_wet: Monthly
+    rain_excess_shape: Monthly
+    rain_excess_scale_mm: Monthly
+    tmax_mean_dry_degc: Monthly
+    tmax_mean_wet_degc: Monthly
+    tmax_sd_dry_degc: Monthly
+    tmax_sd_wet_degc: Monthly
+    tmin_mean_dry_degc: Monthly
+    tmin_mean_wet_degc: Monthly
+    tmin_sd_dry_degc: Monthly
+    tmin_sd_wet_degc: Monthly
+    srad_mean_dry_mj_m2: Monthly
+    srad_mean_wet_mj_m2: Monthly
+    srad_sd_dry_mj_m2: Monthly
+    srad_sd_wet_mj_m2: Monthly
+    residual_lag0_correlation: Matrix3
+    residual_lag1_correlation: Matrix3
+    dew_point_depression_mean_degc: Monthly
+    dew_point_depression_sd_degc: Monthly
+    wind_shape: Monthly
+    wind_scale_m_s: Monthly
+    metadata: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            if item.type != "Monthly":
+                continue
+            values = tuple(float(v) for v in getattr(self, item.name))
+            if len(values) != MONTHS or not all(np.isfinite(values)):
+                raise WeatherError(f"generator parameters {self.name}: {item.name} needs {MONTHS} finite "
+                                   f"monthly values, got {values}")
+            object.__setattr__(self, item.name, values)
+            if item.name.startswith("p_wet") and not all(0.0 <= v <= 1.0 for v in values):
+                raise WeatherError(f"generator parameters {self.name}: {item.name} has a probability "
+                                   f"outside [0, 1]: {values}")
+            positive = item.name.endswith(("shape", "scale_mm", "scale_m_s"))
+            if (positive and min(values) <= 0) or ("_sd_" in item.name and min(values) < 0):
+                raise WeatherError(f"generator parameters {self.name}: {item.name} must be "
+                                   f"{'positive' if positive else 'non-negative'}: {values}")
+        for name in ("residual_lag0_correlation", "residual_lag1_correlation"):
+            matrix = np.asarray(getattr(self, name), dtype=float)
+            if matrix.shape != (3, 3) or not np.all(np.abs(matrix) <= 1.0):
+                raise WeatherError(f"generator parameters {self.name}: {name} must be a 3 x 3 correlation "
+                                   f"matrix, got {matrix.tolist()}")
+            object.__setattr__(self, name, tuple(tuple(float(v) for v in row) for row in matrix))
+
+    def to_json(self, path: str | Path) -> None:
+        """Write the parameters (and metadata) as JSON."""
+        Path(path).write_text(json.dumps(asdict(self), indent=1) + "\n", encoding="utf-8")
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> "GeneratorParameters":
+        """Read parameters written by :meth:`to_json`; WeatherError names the file on any problem."""
+        try:
+            values = json.loads(Path(path).read_text(encoding="utf-8"))
+            values["site"] = Site(**values["site"])
+            return cls(**values)
+        except (OSError, ValueError, TypeError, KeyError) as error:
+            raise WeatherError(f"{path}: not generator parameters: {error}") from None
+
+
+def benton_parameters() -> GeneratorParameters:
+    """Parameters fitted to Benton County, WA (``crop-sim fit-weather``; see the file's metadata)."""
+    return GeneratorParameters.from_json(BENTON_PARAMETERS_FILE)
+
+
+def _monthly(params: GeneratorParameters, name: str, month_index: np.ndarray) -> np.ndarray:
+    """The monthly parameter ``name`` for each day, shape (days, 1) to broadcast over seasons."""
+    return np.asarray(getattr(params, name))[month_index][:, None]
+
+
+def _autoregression(params: GeneratorParameters) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Richardson's A, B (z_t = A z_(t-1) + B e_t) and the Cholesky factor of the lag-0 correlation."""
+    m0 = np.asarray(params.residual_lag0_correlation)
+    m1 = np.asarray(params.residual_lag1_correlation)
+    a = m1 @ np.linalg.inv(m0)
+    innovation = m0 - a @ m1.T
+    # Sampling error can leave the innovation covariance slightly indefinite: clip its eigenvalues.
+    eigenvalues, vectors = np.linalg.eigh((innovation + innovation.T) / 2)
+    b = vectors * np.sqrt(np.clip(eigenvalues, 0.0, None))
+    return a, b, np.linalg.cholesky(m0)
+
+
+def _generate_arrays(params: GeneratorParameters, dates: np.ndarray, n_seasons: int,
+                     rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Every weather variable as a (days, n_seasons) array."""
+    days = len(dates)
+    month_index = (dates.astype("datetime64[M]").astype(int) % MONTHS)
+    day_of_year = (dates - dates.astype("datetime64[Y]").astype("datetime64[D]")).astype(int) + 1
+
+    # Rain occurrence: Markov chain, started from the first month's stationary wet probability.
+    uniform = rng.random((days, n_seasons))
+    p_dry_wet = _monthly(params, "p_wet_after_dry", month_index)[:, 0]
+    p_wet_wet = _monthly(params, "p_wet_after_wet", month_index)[:, 0]
+    wet = np.empty((days, n_seasons), dtype=bool)
+    wet[0] = uniform[0] < p_dry_wet[0] / max(1.0 + p_dry_wet[0] - p_wet_wet[0], 1e-12)
+    for t in range(1, days):
+        wet[t] = uniform[t] < np.where(wet[t - 1], p_wet_wet[t], p_dry_wet[t])
+    excess_mm = rng.gamma(_monthly(params, "rain_excess_shape", month_index),
+                          _monthly(params, "rain_excess_scale_mm", month_index), size=(days, n_seasons))
+    rain_mm = np.where(wet, params.wet_day_threshold_mm + excess_mm, 0.0)
+
+    # Standardized TMAX, TMIN, SRAD residuals: multivariate AR(1).
+    a, b, lag0_factor = _autoregression(params)
+    noise = rng.standard_normal((days, n_seasons, len(RESIDUAL_VARIABLES)))
+    residuals = np.empty_like(noise)
+    residuals[0] = noise[0] @ lag0_factor.T
+    for t in range(1, days):
+        residuals[t] = residuals[t - 1] @ a.T + noise[t] @ b.T
+    values = {}
+    for k, variable in enumerate(RESIDUAL_VARIABLES):
+        mean_dry, mean_wet, sd_dry, sd_wet = (_monthly(params, name, month_index)
+                                              for name in conditional_field_names(variable))
+        values[variable] = np.where(wet, mean_wet + sd_wet * residuals[..., k],
+                                    mean_dry + sd_dry * residuals[..., k])
+    tmin_degc = np.minimum(values["tmin"], values["tmax"])
+    tmax_degc = np.maximum(values["tmin"], values["tmax"])
+    srad_max = clear_sky_radiation_mj_m2(day_of_year, params.site.latitude_deg, params.site.elevation_m)
+    srad_mj_m2 = np.clip(values["srad"], MIN_SRAD_MJ_M2, srad_max[:, None])
+
+    depression_degc = (_monthly(params, "dew_point_depression_mean_degc", month_index)
+                       + _monthly(params, "dew_point_depression_sd_degc", month_index)
+                       * rng.standard_normal((days, n_seasons)))
+    dew_point = np.minimum(tmin_degc - depression_degc, (tmax_degc + tmin_degc) / 2)
+    wind_m_s = rng.gamma(_monthly(params, "wind_shape", month_index),
+                         _monthly(params, "wind_scale_m_s", month_index), size=(days, n_seasons))
+    return {"tmax_degc": tmax_degc, "tmin_degc": tmin_degc, "srad_mj_m2": srad_mj_m2, "rain_mm": rain_mm,
+            "vap_hpa": saturation_vapour_pressure_hpa(dew_point), "wind_m_s": wind_m_s}
+
+
+def generate_seasons(params: GeneratorParameters, start: date, days: int, n_seasons: int,
+                     seed: int | np.random.Generator) -> list[WeatherSeries]:
+    """``n_seasons`` independent seasons of ``days`` days from ``start``, drawn at once.
+
+    The same integer seed gives the same seasons; a ``numpy.random.Generator`` is advanced. Each series'
+    source reads ``generator(<name>, seed=<seed>, season=<k>)`` (no season index when n_seasons is 1).
+    """
+    if days < 1 or n_seasons < 1:
+        raise WeatherError(f"generator({params.name}): days ({days}) and n_seasons ({n_seasons}) must be >= 1")
+    dates = np.datetime64(start, "D") + np.arange(days)
+    arrays = _generate_arrays(params, dates, n_seasons, np.random.default_rng(seed))
+    seed_text = seed if isinstance(seed, (int, np.integer)) else "rng"
+    by_season = {name: np.ascontiguousarray(values.T) for name, values in arrays.items()}
+    series = []
+    for k in range(n_seasons):
+        season = "" if n_seasons == 1 else f", season={k}"
+        series.append(make_series(params.site, dates, source=f"generator({params.name}, seed={seed_text}{season})",
+                                  **{name: values[k] for name, values in by_season.items()}))
+    return series
+
+
+def generate_season(params: GeneratorParameters, start: date, days: int,
+                    seed: int | np.random.Generator) -> WeatherSeries:
+    """One season: :func:`generate_seasons` with n_seasons = 1."""
+    return generate_seasons(params, start, days, 1, seed)[0]
