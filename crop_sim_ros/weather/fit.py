@@ -6,7 +6,8 @@ Every monthly statistic uses the days of its own calendar month when there are a
 until there are. Months without any observation of a variable (vapour pressure and wind outside
 April-September, when only the AgWeatherNet file has them) so take the nearest observed month; the JSON
 metadata lists every such pooling. Wet-day temperature and radiation statistics pool anomalies from the
-dry-day mean of each day's own month, so pooling does not mix in the neighbour's seasonal level.
+dry-day mean curve of each day (the smooth daily curve of the monthly means, as the generator draws),
+so pooling does not mix in the neighbour's seasonal level.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .generator import (BENTON_PARAMETERS_FILE, MONTHS, RESIDUAL_VARIABLES, GeneratorParameters,
-                        conditional_field_names, dew_point_degc, generate_seasons)
+                        conditional_field_names, dew_point_degc, generate_seasons, smooth_daily)
 from .readers import read_agweathernet_csv, read_dssat_wth
 from .series import WeatherError, WeatherSeries
 
@@ -64,7 +65,8 @@ class _Days:
         def stack(values) -> np.ndarray:
             return np.concatenate([np.asarray(v, dtype=float) for v in values])
 
-        self.month = np.concatenate([s.dates.astype("datetime64[M]").astype(int) % MONTHS for s in series_list])
+        self.dates = np.concatenate([s.dates for s in series_list])
+        self.month = self.dates.astype("datetime64[M]").astype(int) % MONTHS
         for name in ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "vap_hpa", "wind_m_s"):
             setattr(self, name, stack(getattr(s, name) for s in series_list))
         self.has_rain = np.isfinite(self.rain_mm)
@@ -109,6 +111,10 @@ class _Fitter:
         return result
 
 
+def _sd(values: np.ndarray) -> float:
+    return float(np.std(values, ddof=1))
+
+
 def _gamma_moments(values: np.ndarray) -> tuple[float, float]:
     """Gamma (shape, scale) by the method of moments: it keeps the mean, hence monthly totals, exact."""
     mean, variance = float(np.mean(values)), float(np.var(values, ddof=1))
@@ -132,15 +138,13 @@ def fit_parameters(series_list: list[WeatherSeries], name: str,
         observed = getattr(days, column)
         mean_dry_name, mean_wet_name, sd_dry_name, sd_wet_name = conditional_field_names(variable)
         mean_dry = np.array(fitter.monthly(mean_dry_name, observed, days.dry, np.mean))
-        sd_dry = np.array(fitter.monthly(sd_dry_name, observed - mean_dry[days.month], days.dry,
-                                         lambda x: float(np.std(x, ddof=1))))
-        anomaly = observed - mean_dry[days.month]
-        mean_wet = mean_dry + fitter.monthly(mean_wet_name, anomaly, days.wet, np.mean)
-        sd_wet = np.array(fitter.monthly(sd_wet_name, anomaly - (mean_wet - mean_dry)[days.month], days.wet,
-                                         lambda x: float(np.std(x, ddof=1))))
+        anomaly_dry = observed - smooth_daily(mean_dry, days.dates)
+        sd_dry = np.array(fitter.monthly(sd_dry_name, anomaly_dry, days.dry, _sd))
+        mean_wet = mean_dry + fitter.monthly(mean_wet_name, anomaly_dry, days.wet, np.mean)
+        anomaly_wet = observed - smooth_daily(mean_wet, days.dates)
+        sd_wet = np.array(fitter.monthly(sd_wet_name, anomaly_wet, days.wet, _sd))
         values.update({mean_dry_name: mean_dry, mean_wet_name: mean_wet, sd_dry_name: sd_dry, sd_wet_name: sd_wet})
-        residuals.append(np.where(days.wet, (observed - mean_wet[days.month]) / sd_wet[days.month],
-                                  (observed - mean_dry[days.month]) / sd_dry[days.month]))
+        residuals.append(np.where(days.wet, anomaly_wet / sd_wet[days.month], anomaly_dry / sd_dry[days.month]))
     residuals = np.array(residuals)  # (3, days)
     today = np.all(np.isfinite(residuals), axis=0)
     lag0 = np.corrcoef(residuals[:, today])
@@ -151,8 +155,7 @@ def fit_parameters(series_list: list[WeatherSeries], name: str,
     depression = days.tmin_degc - dew_point_degc(days.vap_hpa)
     everyday = np.ones(len(days.month), dtype=bool)
     depression_mean = fitter.monthly("dew_point_depression_mean_degc", depression, everyday, np.mean)
-    depression_sd = fitter.monthly("dew_point_depression_sd_degc", depression, everyday,
-                                   lambda x: float(np.std(x, ddof=1)))
+    depression_sd = fitter.monthly("dew_point_depression_sd_degc", depression, everyday, _sd)
     wind_gamma = fitter.monthly("wind", days.wind_m_s, everyday, _gamma_moments)
 
     metadata = {

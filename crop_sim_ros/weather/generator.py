@@ -6,6 +6,8 @@ Per calendar month (parameters are monthly steps):
   wet when its rain is at least ``wet_day_threshold_mm``;
 - rain amount on a wet day: the threshold plus a gamma-distributed excess (shape, scale in mm);
 - TMAX, TMIN, SRAD: normal with means and standard deviations that depend on whether the day is wet;
+  the monthly means become a smooth daily curve (:func:`smooth_daily`, which keeps each month's mean) so
+  that the weather does not jump at the first of a month;
   their standardized residuals follow the multivariate lag-1 autoregression of Richardson (1981),
   z_t = A z_(t-1) + B e_t, with A and B from the lag-0 and lag-1 correlation matrices;
   TMIN <= TMAX is enforced (the two are swapped on the rare day they cross) and SRAD is clipped to
@@ -13,6 +15,8 @@ Per calendar month (parameters are monthly steps):
 - vapour pressure: e0(dew point), dew point = TMIN - a normal dew point depression (monthly mean and
   standard deviation), capped at the day's mean temperature (TMAX + TMIN) / 2;
 - wind at 2 m: gamma distributed (monthly shape, scale in m s-1).
+
+No separate daily mean temperature is drawn: ``tavg_degc`` is NaN, and users take (TMAX + TMIN) / 2.
 
 Internally every variable is a numpy array of shape (days, N); a season is one column. Imports neither
 rclpy, gymnasium nor torch.
@@ -44,6 +48,31 @@ def conditional_field_names(variable: str) -> tuple[str, str, str, str]:
     unit = RESIDUAL_UNITS[variable]
     return (f"{variable}_mean_dry_{unit}", f"{variable}_mean_wet_{unit}",
             f"{variable}_sd_dry_{unit}", f"{variable}_sd_wet_{unit}")
+
+
+def _month_position(dates: np.ndarray) -> np.ndarray:
+    """Position of each day in the year in months: 0.5 is mid-January, 11.5 mid-December."""
+    months = dates.astype("datetime64[M]")
+    month_start = months.astype("datetime64[D]")
+    month_length = ((months + 1).astype("datetime64[D]") - month_start).astype(int)
+    return months.astype(int) % MONTHS + ((dates - month_start).astype(int) + 0.5) / month_length
+
+
+# Linear interpolation between mid-month nodes n averages (n[m-1] + 6 n[m] + n[m+1]) / 8 over month m
+# (months taken as equally long): this inverse turns monthly means into the nodes that keep them.
+_NODES_FROM_MONTHLY_MEANS = np.linalg.inv(
+    (6 * np.eye(MONTHS) + np.roll(np.eye(MONTHS), 1, axis=1) + np.roll(np.eye(MONTHS), -1, axis=1)) / 8)
+
+
+def smooth_daily(monthly_means, dates) -> np.ndarray:
+    """Daily values on ``dates`` of a smooth annual curve whose monthly means are ``monthly_means``.
+
+    Piecewise linear between mid-month nodes, cyclic over the year; the monthly means are kept to within
+    the effect of unequal month lengths.
+    """
+    nodes = _NODES_FROM_MONTHLY_MEANS @ np.asarray(monthly_means, dtype=float)
+    return np.interp(_month_position(np.asarray(dates, dtype="datetime64[D]")), np.arange(MONTHS) + 0.5,
+                     nodes, period=MONTHS)
 
 
 def dew_point_degc(vap_hpa):
@@ -208,8 +237,10 @@ def _generate_arrays(params: GeneratorParameters, dates: np.ndarray, n_seasons: 
         residuals[t] = residuals[t - 1] @ a.T + noise[t] @ b.T
     values = {}
     for k, variable in enumerate(RESIDUAL_VARIABLES):
-        mean_dry, mean_wet, sd_dry, sd_wet = (_monthly(params, name, month_index)
-                                              for name in conditional_field_names(variable))
+        mean_dry_name, mean_wet_name, sd_dry_name, sd_wet_name = conditional_field_names(variable)
+        mean_dry = smooth_daily(getattr(params, mean_dry_name), dates)[:, None]
+        mean_wet = smooth_daily(getattr(params, mean_wet_name), dates)[:, None]
+        sd_dry, sd_wet = _monthly(params, sd_dry_name, month_index), _monthly(params, sd_wet_name, month_index)
         values[variable] = np.where(wet, mean_wet + sd_wet * residuals[..., k],
                                     mean_dry + sd_dry * residuals[..., k])
     tmin_degc = np.minimum(values["tmin"], values["tmax"])
