@@ -1,10 +1,13 @@
-"""Daily weather: the series type, file readers, the seeded generator and the noisy forecast.
+"""Daily weather: the series type, file readers, the seeded generator.
 
 Imports neither rclpy, gymnasium nor torch.
 """
 
+from .csv_readers import read_nasa_power_csv, read_plain_csv, write_plain_csv
+from .generator import GeneratorParameters, benton_parameters, generate_season, generate_seasons
 from .readers import BENTON_E_SITE, read_agweathernet_csv, read_dssat_wth
 from .series import Site, WeatherError, WeatherSeries, make_series
 
-__all__ = ["BENTON_E_SITE", "Site", "WeatherError", "WeatherSeries", "make_series", "read_agweathernet_csv",
-           "read_dssat_wth"]
+__all__ = ["BENTON_E_SITE", "GeneratorParameters", "Site", "WeatherError", "WeatherSeries", "benton_parameters",
+           "generate_season", "generate_seasons", "make_series", "read_agweathernet_csv", "read_dssat_wth",
+           "read_nasa_power_csv", "read_plain_csv", "write_plain_csv"]
