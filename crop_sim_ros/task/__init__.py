@@ -1,0 +1,42 @@
+"""The irrigation task: scenarios, the functional core (observation, reward), the Gymnasium environment and
+its vectorised form, and their registration.
+
+Registered ids (``gymnasium.make(id)``; ``gymnasium.make_vec(id, num_envs=N)`` gives the batched
+:class:`IrrigationVectorEnv`):
+
+======================================= ===================== ===========================================
+id                                      scenario              weather
+======================================= ===================== ===========================================
+SimpleIrrigation-Generated-v0           benton-generated      generated Benton County seasons (no file)
+SimpleIrrigation-Benton2000-v0          benton-2000           AgWeatherNet Benton E., 2000 (the paper's)
+SimpleIrrigation-Paterson1992-v0 .. 95  paterson-1992 .. 1995 DSSAT WAPA9201..9501.WTH (held out)
+SimpleIrrigation-HeldOut-v0             heldout               the five real seasons
+======================================= ===================== ===========================================
+
+Imports neither rclpy nor torch (the Stable-Baselines3 adapter is :mod:`crop_sim_ros.task.sb3_vec`).
+"""
+
+from gymnasium.envs.registration import register, registry
+
+from .env import STATE_INFO_KEYS, STEP_INFO_KEYS, IrrigationEnv
+from .scenario import ObservationNoise, Scenario, get_scenario, load_scenario, scenario_names
+from .vector_env import IrrigationVectorEnv
+
+ENV_IDS = {
+    "SimpleIrrigation-Generated-v0": "benton-generated",
+    "SimpleIrrigation-Benton2000-v0": "benton-2000",
+    "SimpleIrrigation-Paterson1992-v0": "paterson-1992",
+    "SimpleIrrigation-Paterson1993-v0": "paterson-1993",
+    "SimpleIrrigation-Paterson1994-v0": "paterson-1994",
+    "SimpleIrrigation-Paterson1995-v0": "paterson-1995",
+    "SimpleIrrigation-HeldOut-v0": "heldout",
+}
+
+for _env_id, _scenario in ENV_IDS.items():
+    if _env_id not in registry:
+        register(id=_env_id, entry_point="crop_sim_ros.task.env:IrrigationEnv",
+                 vector_entry_point="crop_sim_ros.task.vector_env:IrrigationVectorEnv",
+                 kwargs={"scenario": _scenario})
+
+__all__ = ["ENV_IDS", "IrrigationEnv", "IrrigationVectorEnv", "ObservationNoise", "STATE_INFO_KEYS",
+           "STEP_INFO_KEYS", "Scenario", "get_scenario", "load_scenario", "scenario_names"]

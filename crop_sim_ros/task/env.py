@@ -1,0 +1,205 @@
+"""The irrigation task as a Gymnasium environment: one field, one simulated day per step."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from ..model import harvestable_yield_kg_ha
+from ..weather import WeatherSeries
+from . import core
+from .scenario import Scenario, get_scenario
+
+# Keys of ``info`` (reset and step); the ROS simulator node and the agents rely on them: keep them stable.
+STATE_INFO_KEYS = ("day", "date", "season", "weather_source", "weather_filled", "true_biomass_t_ha", "true_paw_mm",
+                   "thermal_time_degc_d", "fsolar", "yield_t_ha", "mature", "potential_yield_t_ha")
+STEP_INFO_KEYS = ("irrigation_requested_mm", "irrigation_applied_mm", "irrigation_clipped", "rain_mm", "runoff_mm",
+                  "drainage_mm", "transpiration_mm", "et0_mm", "arid", "episode_return", "normalized_return")
+
+
+class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
+    """
+    ## Description
+
+    A field of one crop (by default Russet Burbank potato on the Benton County, WA soil) grows through one
+    season under the SIMPLE crop model (Zhao et al. 2019). Each step is one day: the agent decides how
+    much to irrigate today, knowing the crop's state, today's weather and a noisy forecast of tomorrow's.
+    Water costs a little; the harvest at maturity pays the dry yield. This is the task of Ashcraft & Karra
+    (2021), "Machine Learning aided Crop Yield Optimization", with the unit defects of its code fixed.
+
+    ## Action Space
+
+    ``Box(0, 100, (1,), float32)``: irrigation applied today, mm (the upper bound is the scenario's
+    ``max_irrigation_mm``). It enters the water balance with the day's rain (and runs off like rain).
+    A value outside the box is clipped to it and flagged in ``info["irrigation_clipped"]``; NaN or an
+    infinite value raises ValueError.
+
+    ## Observation Space
+
+    ``Box(low, inf, (20,), float32)``; noise is Gaussian, with the standard deviations of the scenario
+    (defaults: the paper's Table 2); a noisy value below its physical bound is clipped to the bound.
+
+    | Num | Observation                          | Unit   | Noise std (default) | Low  |
+    |-----|--------------------------------------|--------|---------------------|------|
+    | 0   | above-ground biomass                 | t/ha   | 0.01                | 0    |
+    | 1   | thermal time since sowing (TT)       | degC d | -                   | -inf |
+    | 2   | days since sowing                    | d      | -                   | 0    |
+    | 3   | today's TMAX                         | degC   | -                   | -inf |
+    | 4   | today's TMIN                         | degC   | -                   | -inf |
+    | 5   | today's TAVG = (TMAX + TMIN) / 2     | degC   | -                   | -inf |
+    | 6   | today's rain                         | mm     | -                   | 0    |
+    | 7   | today's solar radiation SRAD         | MJ/m2  | -                   | 0    |
+    | 8   | today's CO2                          | ppm    | -                   | 0    |
+    | 9   | today's vapour pressure VAP          | hPa    | -                   | 0    |
+    | 10  | today's wind at 2 m                  | m/s    | -                   | 0    |
+    | 11  | forecast of tomorrow's TMAX          | degC   | 3                   | -inf |
+    | 12  | forecast of tomorrow's TMIN          | degC   | 2                   | -inf |
+    | 13  | forecast of tomorrow's TAVG          | degC   | 2                   | -inf |
+    | 14  | forecast of tomorrow's rain          | mm     | 3                   | 0    |
+    | 15  | forecast of tomorrow's SRAD          | MJ/m2  | 1                   | 0    |
+    | 16  | forecast of tomorrow's CO2           | ppm    | 1                   | 0    |
+    | 17  | forecast of tomorrow's VAP           | hPa    | 1                   | 0    |
+    | 18  | forecast of tomorrow's wind          | m/s    | 6                   | 0    |
+    | 19  | plant-available water in the root zone (PAW) | mm | 1                | 0    |
+
+    TAVG is the measured daily mean instead when the scenario sets ``observe_measured_tavg``. On the last
+    day of the weather there is no tomorrow: the forecast is built from today's true weather.
+
+    ## Rewards
+
+    ``irrigation_cost_per_mm * a`` every day (default -1.25e-4 per mm; ``a`` = irrigation applied, mm),
+    plus the dry yield (t/ha, harvest index times biomass) on the day the crop matures. ``info`` carries
+    the running ``episode_return`` and ``normalized_return`` (the return over ``potential_yield_t_ha``, the
+    yield of the same season with no water stress and no water cost).
+
+    ## Starting State
+
+    The sowing day: biomass 1 kg/ha, TT 0, a full root zone (PAW = AWC x RZD, 120 mm on the Benton soil).
+    The season's weather is drawn from the scenario's seasons with the reset's generator (a pool of
+    generated seasons, or a list of real ones), unless ``reset(options=...)`` names it.
+
+    ## Episode End
+
+    - Termination: the crop matures (TT passes Tsum, the canopy senesces, or the harvest date).
+    - Truncation: the season's weather (at most ``max_season_days`` days) runs out before maturity.
+    Stepping after either raises RuntimeError; call ``reset``.
+
+    ## Arguments
+
+    ```python
+    gymnasium.make("SimpleIrrigation-Generated-v0")        # scenario "benton-generated" (no data file)
+    gymnasium.make("SimpleIrrigation-Benton2000-v0")       # the paper's season, AgWeatherNet Benton E. 2000
+    IrrigationEnv(scenario="heldout", data_dir=None)        # a Scenario or a built-in scenario's name
+    env.reset(seed=0)                                       # seeds the weather draw and all noise
+    env.reset(options={"season": 2})                        # the scenario's season 2
+    env.reset(options={"weather": weather_series})          # a given WeatherSeries, sown on its first day
+    ```
+
+    ``data_dir``: where the scenario's weather files are (default ``../shared/data`` next to the
+    repository). Same seed and same actions give the same episode, bit for bit.
+
+    ``info`` keys, on reset and every step (the state after the day): ``day`` (days since sowing),
+    ``date`` (ISO), ``season`` (index in the scenario, -1 for a given weather), ``weather_source``,
+    ``weather_filled`` (what FAO-56's missing-data rules filled), ``true_biomass_t_ha``, ``true_paw_mm``,
+    ``thermal_time_degc_d``, ``fsolar``, ``yield_t_ha`` (harvest index x biomass: the harvested yield once
+    mature), ``mature``, ``potential_yield_t_ha``. On every step also, for the day just simulated:
+    ``irrigation_requested_mm``, ``irrigation_applied_mm``, ``irrigation_clipped``, ``rain_mm``,
+    ``runoff_mm``, ``drainage_mm``, ``transpiration_mm``, ``et0_mm``, ``arid``, and ``episode_return``,
+    ``normalized_return``.
+
+    ## Version History
+
+    - v0: first version (SIMPLE of Zhao et al. 2019; observation and reward of Ashcraft & Karra 2021 with
+      biomass in t/ha, CO2 sensitivity per 100 ppm, Benton site ET0, season ended by maturity).
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, scenario: str | Scenario = "benton-generated", data_dir: str | Path | None = None):
+        self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario, data_dir)
+        self.seasons = core.scenario_table(self.scenario)
+        self.params = core.task_params(self.scenario)
+        self.action_space = gym.spaces.Box(0.0, self.scenario.max_irrigation_mm, (1,), np.float32)
+        self.observation_space = gym.spaces.Box(core.OBSERVATION_LOW, core.OBSERVATION_HIGH, dtype=np.float32)
+        self._table = self.seasons
+        self._state: core.TaskState | None = None
+        self._season = -1
+        self._ended = False
+        self._return = 0.0
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        weather: WeatherSeries | None = options.pop("weather", None)
+        season = options.pop("season", None)
+        if options:
+            raise ValueError(f"unknown reset options {sorted(options)}; known: weather, season")
+        if weather is not None:
+            self._table = core.season_table(self.scenario, [self.scenario.prepare(weather)])
+            self._season = -1
+        else:
+            self._table = self.seasons
+            if season is None:
+                season = int(self.np_random.integers(len(self.seasons)))
+            elif not 0 <= int(season) < len(self.seasons):
+                raise ValueError(f"season {season} is outside 0..{len(self.seasons) - 1} of scenario "
+                                 f"{self.scenario.name!r}")
+            self._season = int(season)
+        self._state = core.initial(self.params, np.array([max(self._season, 0)]))
+        self._ended = False
+        self._return = 0.0
+        return self._observe(), self._state_info()
+
+    def step(self, action):
+        if self._state is None:
+            raise RuntimeError("call reset() before step()")
+        if self._ended:
+            raise RuntimeError("the season has ended (terminated or truncated); call reset()")
+        requested = np.asarray(action, dtype=np.float64)
+        if requested.size != 1:
+            raise ValueError(f"action must be one irrigation amount in mm, got shape {requested.shape}")
+        requested = float(requested.reshape(()))
+        if not math.isfinite(requested):
+            raise ValueError(f"irrigation must be a finite number of mm, got {requested}")
+        applied = min(max(requested, 0.0), self.scenario.max_irrigation_mm)
+        state = self._state
+        self._state, fluxes = core.transition(self.params, self._table, state, applied)
+        reward = float(core.reward(self.params, state, applied, self._state)[0])
+        terminated = bool(core.terminal(self._state)[0])
+        truncated = bool(core.truncated(self._table, self._state)[0])
+        self._ended = terminated or truncated
+        self._return += reward
+        info = self._state_info()
+        info.update(irrigation_requested_mm=requested, irrigation_applied_mm=applied,
+                    irrigation_clipped=applied != requested,
+                    rain_mm=float(self._table.weather[state.season[0], info["day"] - 1, core.RAIN]),
+                    runoff_mm=float(fluxes.runoff_mm[0]), drainage_mm=float(fluxes.drainage_mm[0]),
+                    transpiration_mm=float(fluxes.transpiration_mm[0]), et0_mm=float(fluxes.et0_mm[0]),
+                    arid=float(fluxes.arid[0]), episode_return=self._return,
+                    normalized_return=self._return / info["potential_yield_t_ha"])
+        return self._observe(), reward, terminated, truncated, info
+
+    def _observe(self) -> np.ndarray:
+        return core.observation(self.params, self._table, self._state, self.np_random)[0]
+
+    def _state_info(self) -> dict[str, Any]:
+        crop, k = self._state.crop, int(self._state.season[0])
+        day = int(crop.days_since_sowing[0])
+        return {
+            "day": day,
+            "date": str(self._table.sowing_dates[k] + day),
+            "season": self._season,
+            "weather_source": self._table.sources[k],
+            "weather_filled": self._table.filled[k],
+            "true_biomass_t_ha": float(crop.biomass_kg_ha[0]) / core.KG_PER_T,
+            "true_paw_mm": float(crop.plant_available_water_mm[0]),
+            "thermal_time_degc_d": float(crop.thermal_time_degc_d[0]),
+            "fsolar": float(crop.fsolar[0]),
+            "yield_t_ha": float(harvestable_yield_kg_ha(self.params.fields, crop)[0]) / core.KG_PER_T,
+            "mature": bool(crop.mature[0]),
+            "potential_yield_t_ha": float(self._table.potential_yield_t_ha[k]),
+        }

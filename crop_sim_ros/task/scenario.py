@@ -1,0 +1,345 @@
+"""Scenarios of the irrigation task, as data: crop, soil, site, weather source, observation noise, costs.
+
+A scenario is a small YAML file in ``crop_sim_ros/task/scenarios/`` (package data) read into a frozen
+:class:`Scenario`; :func:`get_scenario` finds one by name. Weather files are named relative to the data
+directory (``data_dir``; by default ``../shared/data`` next to the repository, never copied into it).
+
+Weather sources (``weather.kind``):
+
+- ``generator``: a pool of ``n_seasons`` seasons drawn at once by the seeded weather generator
+  (``crop_sim_ros.weather.generator``) with seed ``seed``, sown on ``sowing_date``; ``reset`` picks one.
+  ``n_seasons: 1`` is a single fixed generated season. Needs no file.
+- ``file``: one weather file (``path``, ``format``), the season starting on ``sowing_date``.
+- ``seasons``: several (file, format, sowing date) seasons; ``reset`` picks one (or the one asked for).
+
+File formats: ``agweathernet`` (AgWeatherNet daily CSV), ``dssat`` (DSSAT .WTH), ``csv`` (the plain daily CSV of
+``crop_sim_ros.weather.csv_readers.read_plain_csv``).
+
+Every season runs from its sowing date for at most ``max_season_days`` days (fewer if the weather ends
+first). Missing vapour pressure and wind (the DSSAT files of Paterson, WA have neither) are filled by
+FAO-56's missing-data rules (``WeatherSeries.with_fao56_fills``: e_a from TMIN, wind 2 m/s); the
+environment reports the fills in ``info["weather_filled"]``.
+
+Built-in scenarios: ``benton-generated`` (the default; generated Benton County weather), ``benton-2000``
+(the seed paper's season: AgWeatherNet Benton E., 2000), ``paterson-1992`` .. ``paterson-1995`` (held-out
+real seasons of the SIMPLE input set, DSSAT WAPA9201..9501.WTH, sowing dates of its Treatment.csv), and
+``heldout`` (the five real seasons together, for evaluation). Every built-in scenario grows Russet Burbank
+potato on the Benton County soil at 369 ppm CO2 (the 2000 global mean; the held-out seasons keep it so
+that only the weather differs from training).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, fields, replace
+from datetime import date
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from ..model import FieldParameters, Management, UnknownNameError, crop_library, field_parameters
+from ..model.et0 import ET0_METHODS
+from ..weather import Site, WeatherSeries, read_agweathernet_csv, read_dssat_wth
+from ..weather.csv_readers import read_plain_csv
+
+# ../shared/data next to the repository root (crop_sim_ros/task/scenario.py -> parents[2] is the root).
+DEFAULT_DATA_DIR = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+SCENARIO_DIR = Path(__file__).with_name("scenarios")
+WEATHER_KINDS = ("generator", "file", "seasons")
+WEATHER_FORMATS = ("agweathernet", "dssat", "csv")
+GENERATOR_PARAMETERS = ("benton",)
+# Every weather variable the task needs each day (the model's four plus what ET0 and the observation use).
+TASK_WEATHER_VARIABLES = ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "vap_hpa", "wind_m_s")
+
+
+def _check_number(name: str, value: Any, low: float = -np.inf, high: float = np.inf) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a number, got {value!r}") from None
+    if not (np.isfinite(number) and low <= number <= high):
+        raise ValueError(f"{name}: {value!r} is not a finite number in [{low}, {high}]")
+    return number
+
+
+@dataclass(frozen=True)
+class ObservationNoise:
+    """Standard deviations of the Gaussian observation noise (Ashcraft & Karra 2021, Table 2).
+
+    ============== ======== ===================================================================
+    Name           Unit     Noise on
+    ============== ======== ===================================================================
+    biomass_t_ha   t ha-1   today's biomass (the paper's "1", read as 1 g m-2 = 0.01 t ha-1)
+    paw_mm         mm       today's plant-available water
+    tmax_degc      degC     tomorrow's forecast TMAX
+    tmin_degc      degC     tomorrow's forecast TMIN
+    tavg_degc      degC     tomorrow's forecast TAVG
+    rain_mm        mm       tomorrow's forecast rain
+    srad_mj_m2     MJ m-2   tomorrow's forecast radiation
+    co2_ppm        ppm      tomorrow's forecast CO2
+    vap_hpa        hPa      tomorrow's forecast vapour pressure
+    wind_m_s       m s-1    tomorrow's forecast wind
+    ============== ======== ===================================================================
+    """
+
+    biomass_t_ha: float = 0.01
+    paw_mm: float = 1.0
+    tmax_degc: float = 3.0
+    tmin_degc: float = 2.0
+    tavg_degc: float = 2.0
+    rain_mm: float = 3.0
+    srad_mj_m2: float = 1.0
+    co2_ppm: float = 1.0
+    vap_hpa: float = 1.0
+    wind_m_s: float = 6.0
+
+    def __post_init__(self) -> None:
+        for item in fields(self):
+            object.__setattr__(self, item.name, _check_number(f"noise.{item.name}", getattr(self, item.name), 0.0))
+
+    @classmethod
+    def none(cls) -> "ObservationNoise":
+        """No noise at all: the observation is the true state and the true tomorrow."""
+        return cls(**{item.name: 0.0 for item in fields(cls)})
+
+    def forecast_std(self) -> np.ndarray:
+        """The 8 forecast standard deviations in observation order (TMAX TMIN TAVG RAIN SRAD CO2 VAP WIND)."""
+        return np.array([self.tmax_degc, self.tmin_degc, self.tavg_degc, self.rain_mm, self.srad_mj_m2,
+                         self.co2_ppm, self.vap_hpa, self.wind_m_s])
+
+
+@dataclass(frozen=True)
+class SeasonFile:
+    """One real season: a weather file (relative to the data directory, or absolute), its format, the sowing date."""
+
+    path: str
+    format: str
+    sowing_date: date
+
+    def __post_init__(self) -> None:
+        if self.format not in WEATHER_FORMATS:
+            raise ValueError(f"weather.format: {self.format!r} is not one of {', '.join(WEATHER_FORMATS)}")
+        if not isinstance(self.sowing_date, date):
+            raise ValueError(f"weather.sowing_date: expected a date, got {self.sowing_date!r}")
+
+
+@dataclass(frozen=True)
+class WeatherSource:
+    """Where a scenario's seasons come from (see the module docstring)."""
+
+    kind: str
+    seed: int = 0
+    n_seasons: int = 1000
+    generator: str = "benton"
+    seasons: tuple[SeasonFile, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.kind not in WEATHER_KINDS:
+            raise ValueError(f"weather.kind: {self.kind!r} is not one of {', '.join(WEATHER_KINDS)}")
+        if self.kind == "generator":
+            if self.generator not in GENERATOR_PARAMETERS:
+                raise ValueError(f"weather.generator: {self.generator!r} is not one of "
+                                 f"{', '.join(GENERATOR_PARAMETERS)}")
+            if int(self.n_seasons) != self.n_seasons or self.n_seasons < 1:
+                raise ValueError(f"weather.n_seasons: {self.n_seasons!r} is not a positive integer")
+            if int(self.seed) != self.seed or self.seed < 0:
+                raise ValueError(f"weather.seed: {self.seed!r} is not a non-negative integer")
+        elif not self.seasons or (self.kind == "file" and len(self.seasons) != 1):
+            raise ValueError(f"weather.seasons: a {self.kind!r} source needs "
+                             f"{'one season' if self.kind == 'file' else 'at least one season'}")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One irrigation task setting. Units: CO2 ppm; irrigation mm per day; cost per mm of irrigation (a
+    negative reward); dates are calendar dates; ``site`` overrides the weather source's site for ET0.
+
+    ``observe_measured_tavg``: the observation's TAVG is the source's measured daily mean instead of
+    (TMAX + TMIN) / 2 (the model itself always uses (TMAX + TMIN) / 2).
+    """
+
+    name: str
+    weather: WeatherSource
+    sowing_date: date | None = None
+    crop: str = "potato"
+    cultivar: str = "Russet Burbank"
+    soil: str = "Benton USA potato"
+    parameter_source: str = "zhao2019"
+    site: Site | None = None
+    co2_ppm: float = 369.0
+    max_season_days: int = 200
+    noise: ObservationNoise = ObservationNoise()
+    irrigation_cost_per_mm: float = -1.25e-4
+    max_irrigation_mm: float = 100.0
+    et0_method: str = "penman_monteith"
+    observe_measured_tavg: bool = False
+    description: str = ""
+    data_dir: Path | None = None
+
+    def __post_init__(self) -> None:
+        if not self.name or not isinstance(self.name, str):
+            raise ValueError(f"name: expected a non-empty string, got {self.name!r}")
+        if not isinstance(self.weather, WeatherSource):
+            raise ValueError(f"weather: expected a WeatherSource, got {self.weather!r}")
+        if self.weather.kind == "generator" and not isinstance(self.sowing_date, date):
+            raise ValueError(f"sowing_date: a generator scenario needs a date, got {self.sowing_date!r}")
+        _check_number("co2_ppm", self.co2_ppm, 0.0, 5000.0)
+        _check_number("irrigation_cost_per_mm", self.irrigation_cost_per_mm, high=0.0)
+        _check_number("max_irrigation_mm", self.max_irrigation_mm, 0.0, 1000.0)
+        if int(self.max_season_days) != self.max_season_days or self.max_season_days < 1:
+            raise ValueError(f"max_season_days: {self.max_season_days!r} is not a positive integer")
+        if self.et0_method not in ET0_METHODS:
+            raise ValueError(f"et0_method: {self.et0_method!r} is not one of {', '.join(ET0_METHODS)}")
+        if not isinstance(self.noise, ObservationNoise):
+            raise ValueError(f"noise: expected ObservationNoise, got {self.noise!r}")
+        if self.site is not None and not isinstance(self.site, Site):
+            raise ValueError(f"site: expected a Site, got {self.site!r}")
+
+    @property
+    def resolved_data_dir(self) -> Path:
+        return DEFAULT_DATA_DIR if self.data_dir is None else Path(self.data_dir)
+
+    def field_parameters(self, water_stress: bool = True) -> FieldParameters:
+        """The model parameters of one field (UnknownNameError for an unknown crop, cultivar or soil)."""
+        inputs_dir = self.resolved_data_dir / "simple_r_inputs" if self.parameter_source == "simple_r" else None
+        library = crop_library(self.parameter_source, inputs_dir)
+        return field_parameters(library.species(self.crop), library.cultivar(self.crop, self.cultivar),
+                                library.soil(self.soil), Management(co2_ppm=self.co2_ppm, water_stress=water_stress))
+
+    @property
+    def n_seasons(self) -> int:
+        """How many distinct seasons ``reset`` draws from."""
+        return self.weather.n_seasons if self.weather.kind == "generator" else len(self.weather.seasons)
+
+    def season_path(self, season: SeasonFile) -> Path:
+        """The weather file of ``season``, or FileNotFoundError naming it and the data directory."""
+        path = Path(season.path)
+        if not path.is_absolute():
+            path = self.resolved_data_dir / path
+        if not path.is_file():
+            raise FileNotFoundError(f"scenario {self.name!r}: weather file {path} not found (data directory "
+                                    f"{self.resolved_data_dir}; pass data_dir=... to point elsewhere)")
+        return path
+
+    def load_seasons(self) -> list[WeatherSeries]:
+        """Every season of the scenario, prepared for the task (see :meth:`prepare`)."""
+        if self.weather.kind == "generator":
+            from ..weather.generator import benton_parameters, generate_seasons  # noqa: PLC0415
+
+            raw = generate_seasons(benton_parameters(), self.sowing_date, self.max_season_days,
+                                   self.weather.n_seasons, self.weather.seed)
+            return [self.prepare(series) for series in raw]
+        return [self.prepare(_read_weather(str(self.season_path(s)), s.format), s.sowing_date)
+                for s in self.weather.seasons]
+
+    def prepare(self, series: WeatherSeries, sowing_date: date | None = None) -> WeatherSeries:
+        """``series`` made ready for the task: the scenario's site (if it overrides one), the days from
+        ``sowing_date`` (default: the series' first day) for at most ``max_season_days`` days, missing
+        vapour pressure and wind filled by FAO-56's rules, and every needed value checked."""
+        if self.site is not None:
+            series = replace(series, site=self.site)
+        series = series.window(series.start if sowing_date is None else sowing_date)
+        if len(series) > self.max_season_days:
+            series = series.window(series.start, self.max_season_days)
+        needed = TASK_WEATHER_VARIABLES + (("tavg_degc",) if self.observe_measured_tavg else ())
+        return series.with_fao56_fills().require(needed)
+
+
+@functools.lru_cache(maxsize=32)
+def _read_weather(path: str, fmt: str) -> WeatherSeries:
+    if fmt == "agweathernet":
+        return read_agweathernet_csv(path)
+    if fmt == "dssat":
+        return read_dssat_wth(path)
+    return read_plain_csv(path)
+
+
+# --- YAML ---------------------------------------------------------------------------------------------
+
+def _as_date(name: str, value: Any) -> date:
+    if isinstance(value, date):
+        return value
+    try:
+        return date.fromisoformat(str(value))
+    except ValueError:
+        raise ValueError(f"{name}: {value!r} is not an ISO date (YYYY-MM-DD)") from None
+
+
+def _take(mapping: dict, allowed: set[str], where: str) -> dict:
+    if not isinstance(mapping, dict):
+        raise ValueError(f"{where}: expected a mapping, got {mapping!r}")
+    unknown = sorted(set(mapping) - allowed)
+    if unknown:
+        raise ValueError(f"{where}.{unknown[0]}: unknown field (known: {', '.join(sorted(allowed))})")
+    return dict(mapping)
+
+
+def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scenario:
+    """A Scenario from a YAML mapping; ValueError names the field at fault."""
+    scalar_fields = {f.name for f in fields(Scenario)} - {"data_dir"}
+    values = _take(values, scalar_fields, "scenario")
+    sowing = values.get("sowing_date")
+    sowing = None if sowing is None else _as_date("sowing_date", sowing)
+    if "weather" not in values:
+        raise ValueError("weather: missing (a mapping with kind: generator, file or seasons)")
+    weather = _take(values.pop("weather"), {"kind", "seed", "n_seasons", "generator", "seasons", "path", "format"},
+                    "weather")
+    kind = weather.get("kind")
+    if kind == "file":
+        if sowing is None:
+            raise ValueError("sowing_date: a 'file' weather source needs the scenario's sowing date")
+        weather["seasons"] = [{"path": weather.pop("path", None), "format": weather.pop("format", None),
+                               "sowing_date": sowing}]
+    seasons = []
+    for i, entry in enumerate(weather.pop("seasons", []) or []):
+        entry = _take(entry, {"path", "format", "sowing_date"}, f"weather.seasons[{i}]")
+        if not entry.get("path"):
+            raise ValueError(f"weather.seasons[{i}].path: missing")
+        seasons.append(SeasonFile(str(entry["path"]), str(entry.get("format")),
+                                  _as_date(f"weather.seasons[{i}].sowing_date", entry.get("sowing_date"))))
+    extra = set(weather) - {"kind", "seed", "n_seasons", "generator"}
+    if extra:
+        raise ValueError(f"weather.{sorted(extra)[0]}: not a field of a {kind!r} source")
+    source = WeatherSource(seasons=tuple(seasons), **weather)
+    if "noise" in values:
+        noise = _take(values["noise"], {f.name for f in fields(ObservationNoise)}, "noise")
+        values["noise"] = ObservationNoise(**noise)
+    if values.get("site") is not None:
+        site = _take(values["site"], {f.name for f in fields(Site)}, "site")
+        try:
+            values["site"] = Site(**site)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"site: {error}") from None
+    values["sowing_date"] = sowing
+    return Scenario(weather=source, data_dir=None if data_dir is None else Path(data_dir), **values)
+
+
+def load_scenario(path: str | Path, data_dir: str | Path | None = None) -> Scenario:
+    """Read a scenario YAML file; ValueError names the file and the field at fault."""
+    path = Path(path)
+    try:
+        values = yaml.safe_load(path.read_text(encoding="utf-8"))
+        return scenario_from_dict(values, data_dir)
+    except (ValueError, yaml.YAMLError) as error:
+        raise ValueError(f"{path}: {error}") from None
+
+
+def scenario_names() -> list[str]:
+    """The names of the built-in scenarios."""
+    return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
+
+
+def get_scenario(name: str, data_dir: str | Path | None = None) -> Scenario:
+    """A built-in scenario by name. Its weather files (if any) are looked up in ``data_dir`` (default
+    ``../shared/data`` next to the repository): FileNotFoundError names a missing one; the crop, cultivar
+    and soil are checked (UnknownNameError)."""
+    path = SCENARIO_DIR / f"{name}.yaml"
+    if not path.is_file():
+        raise UnknownNameError(f"unknown scenario {name!r}; known: {', '.join(scenario_names())}")
+    scenario = load_scenario(path, data_dir)
+    scenario.field_parameters()
+    for season in scenario.weather.seasons:
+        scenario.season_path(season)
+    return scenario

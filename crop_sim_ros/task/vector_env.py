@@ -1,0 +1,190 @@
+"""The irrigation task for N fields at once, as a ``gymnasium.vector.VectorEnv`` over the batched model.
+
+Every field is an independent :class:`~crop_sim_ros.task.env.IrrigationEnv` episode; one call of ``step``
+advances all of them by one day with one call of the batched SIMPLE step. Seasons come from the
+scenario's cached table (generated once per process), so an autoreset costs an index draw.
+
+Autoreset: ``AutoresetMode.NEXT_STEP`` (Gymnasium's default: the step after an episode ends resets that
+field, ignores its action and returns reward 0) or ``AutoresetMode.SAME_STEP`` (the ending step returns
+the new season's first observation; the final one is in ``infos["final_obs"]``, an (N, 20) array valid
+where ``infos["_final_obs"]``, and the final infos in ``infos["final_info"]``).
+
+Randomness: one generator for all fields (``reset(seed=...)``): the same seed and actions give the same
+batch, bit for bit. Without observation noise, field i equals a single ``IrrigationEnv`` on the same
+season with the same actions; with noise it draws from the shared stream instead of its own.
+
+``infos``: arrays of shape (N,) (each with its ``_key`` mask, all True): ``day``, ``season`` (index into
+``env.seasons``, or beyond it for the weathers given to ``reset``), ``true_biomass_t_ha``,
+``true_paw_mm``, ``thermal_time_degc_d``, ``fsolar``, ``yield_t_ha``, ``mature``,
+``potential_yield_t_ha``; after a step also ``irrigation_requested_mm``, ``irrigation_applied_mm``,
+``irrigation_clipped``, ``rain_mm``, ``runoff_mm``, ``drainage_mm``, ``transpiration_mm``, ``et0_mm``,
+``arid`` (their mask is False for a field that NEXT_STEP autoreset on that step: its action was ignored),
+``episode_return``, ``normalized_return`` (running; 0 on a field's first day).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ..model import DailyFluxes, harvestable_yield_kg_ha
+from . import core
+from .scenario import Scenario, get_scenario
+
+
+class IrrigationVectorEnv(VectorEnv):
+    """N fields of one scenario (see the module docstring and :class:`IrrigationEnv` for spaces and rewards).
+
+    ``reset(options=...)``: ``{"season": indices (N,)}`` puts field i in season ``indices[i]`` of the
+    scenario; ``{"weathers": [WeatherSeries] * N}`` grows field i in the given series (sown on its first
+    day). Later autoresets draw from the scenario's seasons again.
+    """
+
+    def __init__(self, num_envs: int = 1, scenario: str | Scenario = "benton-generated",
+                 data_dir: str | Path | None = None, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP):
+        self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario, data_dir)
+        self.num_envs = int(num_envs)
+        if self.num_envs < 1:
+            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        if self.autoreset_mode == AutoresetMode.DISABLED:
+            raise ValueError("IrrigationVectorEnv supports AutoresetMode.NEXT_STEP and SAME_STEP")
+        self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": []}
+        self.render_mode = None
+        self.seasons = core.scenario_table(self.scenario)
+        self.params = core.task_params(self.scenario, self.num_envs)
+        self.single_action_space = gym.spaces.Box(0.0, self.scenario.max_irrigation_mm, (1,), np.float32)
+        self.single_observation_space = gym.spaces.Box(core.OBSERVATION_LOW, core.OBSERVATION_HIGH, dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._table = self.seasons
+        self._state: core.TaskState | None = None
+        self._autoreset = np.zeros(self.num_envs, dtype=bool)
+        self._returns = np.zeros(self.num_envs)
+        self._all = np.ones(self.num_envs, dtype=bool)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        weathers = options.pop("weathers", None)
+        season = options.pop("season", None)
+        if options:
+            raise ValueError(f"unknown reset options {sorted(options)}; known: weathers, season")
+        self._table = self.seasons
+        if weathers is not None:
+            if len(weathers) != self.num_envs:
+                raise ValueError(f"weathers: {len(weathers)} series for {self.num_envs} fields")
+            given = core.season_table(self.scenario, [self.scenario.prepare(w) for w in weathers])
+            self._table = core.stack_tables([self.seasons, given])
+            season = len(self.seasons) + np.arange(self.num_envs)
+        elif season is None:
+            season = self._draw_seasons(self.num_envs)
+        else:
+            season = np.broadcast_to(np.asarray(season, dtype=np.int64), (self.num_envs,))
+            if season.min() < 0 or season.max() >= len(self.seasons):
+                raise ValueError(f"season: indices must be in 0..{len(self.seasons) - 1}")
+        self._state = core.initial(self.params, season)
+        self._autoreset[:] = False
+        self._returns[:] = 0.0
+        obs = core.observation(self.params, self._table, self._state, self.np_random)
+        return obs, self._state_infos(self._state)
+
+    def step(self, actions):
+        if self._state is None:
+            raise RuntimeError("call reset() before step()")
+        requested = np.asarray(actions, dtype=np.float64).reshape(-1)
+        if requested.shape != (self.num_envs,):
+            raise ValueError(f"actions must hold one irrigation amount per field ({self.num_envs}), "
+                             f"got shape {np.shape(actions)}")
+        if not np.all(np.isfinite(requested)):
+            raise ValueError(f"irrigation must be finite mm, got a non-finite value for fields "
+                             f"{np.flatnonzero(~np.isfinite(requested))[:10].tolist()}")
+        applied = np.clip(requested, 0.0, self.scenario.max_irrigation_mm)
+        state = self._state
+        next_state, fluxes = core.transition(self.params, self._table, state, applied)
+        rain_mm = self._table.weather[state.season, state.crop.days_since_sowing, core.RAIN]
+        rewards = core.reward(self.params, state, applied, next_state)
+        terminations = core.terminal(next_state)
+        truncations = core.truncated(self._table, next_state)
+        self._returns += rewards
+        stepped = self._all
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            resetting = self._autoreset
+            if resetting.any():
+                next_state = self._restart(next_state, resetting)
+                rewards[resetting] = 0.0
+                terminations = terminations & ~resetting
+                truncations = truncations & ~resetting
+                stepped = ~resetting
+            self._autoreset = terminations | truncations
+            obs = core.observation(self.params, self._table, next_state, self.np_random)
+            infos = self._step_infos(next_state, fluxes, requested, applied, rain_mm, stepped)
+        else:
+            ended = terminations | truncations
+            obs = core.observation(self.params, self._table, next_state, self.np_random)
+            infos = self._step_infos(next_state, fluxes, requested, applied, rain_mm, stepped)
+            if ended.any():
+                infos["final_obs"], infos["_final_obs"] = obs.copy(), ended
+                infos["final_info"], infos["_final_info"] = dict(infos), ended
+                next_state = self._restart(next_state, ended)
+                obs[ended] = core.observation(self.params, self._table, _take(next_state, ended), self.np_random)
+                infos.update(self._state_infos(next_state))
+        self._state = next_state
+        return obs, rewards, terminations, truncations, infos
+
+    def _draw_seasons(self, count: int) -> np.ndarray:
+        return self.np_random.integers(len(self.seasons), size=count)
+
+    def _restart(self, state: core.TaskState, mask: np.ndarray) -> core.TaskState:
+        """The fields of ``mask`` on the sowing day of a newly drawn season, their returns zeroed."""
+        season = np.zeros(self.num_envs, dtype=np.int64)
+        season[mask] = self._draw_seasons(int(mask.sum()))
+        self._returns[mask] = 0.0
+        return core.restart(self.params, state, mask, season)
+
+    def _state_infos(self, state: core.TaskState) -> dict[str, np.ndarray]:
+        crop = state.crop
+        values = {
+            "day": crop.days_since_sowing,
+            "season": state.season,
+            "true_biomass_t_ha": crop.biomass_kg_ha / core.KG_PER_T,
+            "true_paw_mm": crop.plant_available_water_mm,
+            "thermal_time_degc_d": crop.thermal_time_degc_d,
+            "fsolar": crop.fsolar,
+            "yield_t_ha": harvestable_yield_kg_ha(self.params.fields, crop) / core.KG_PER_T,
+            "mature": crop.mature,
+            "potential_yield_t_ha": self._table.potential_yield_t_ha[state.season],
+            "episode_return": self._returns.copy(),
+        }
+        values["normalized_return"] = values["episode_return"] / values["potential_yield_t_ha"]
+        return self._with_masks(values)
+
+    def _step_infos(self, state: core.TaskState, fluxes: DailyFluxes, requested: np.ndarray, applied: np.ndarray,
+                    rain_mm: np.ndarray, stepped: np.ndarray) -> dict[str, np.ndarray]:
+        """State infos and the day's step infos, the latter masked (``_key``) by ``stepped``."""
+        infos = self._state_infos(state)
+        infos.update(self._with_masks({
+            "irrigation_requested_mm": requested,
+            "irrigation_applied_mm": applied,
+            "irrigation_clipped": applied != requested,
+            "rain_mm": rain_mm,
+            "runoff_mm": fluxes.runoff_mm,
+            "drainage_mm": fluxes.drainage_mm,
+            "transpiration_mm": fluxes.transpiration_mm,
+            "et0_mm": fluxes.et0_mm,
+            "arid": fluxes.arid,
+        }, stepped))
+        return infos
+
+    def _with_masks(self, values: dict[str, np.ndarray], mask: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        values.update({f"_{key}": self._all if mask is None else mask for key in list(values)})
+        return values
+
+
+def _take(state: core.TaskState, mask: np.ndarray) -> core.TaskState:
+    return core.TaskState(state.crop.take(mask), state.season[mask])

@@ -1,0 +1,266 @@
+"""The Gymnasium environment, its vectorised form and the Stable-Baselines3 adapter."""
+
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+from crop_sim_ros.task import (ENV_IDS, STATE_INFO_KEYS, STEP_INFO_KEYS, IrrigationEnv, IrrigationVectorEnv,
+                               ObservationNoise, get_scenario)
+from crop_sim_ros.weather import read_agweathernet_csv
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+BENTON_FILE = DATA / "agweathernet" / "benton_e_2000-04-01_2000-09-30.csv"
+needs_data = pytest.mark.skipif(not DATA.is_dir(), reason="shared data directory absent")
+
+
+def noise_free(name: str):
+    return replace(get_scenario(name, DATA), noise=ObservationNoise.none())
+
+
+def run(env, seed, actions, options=None):
+    obs, info = env.reset(seed=seed, options=options)
+    trace = [(obs, None, False, False, info)]
+    for action in actions:
+        obs, reward, terminated, truncated, info = env.step(np.array([action], dtype=np.float32))
+        trace.append((obs, reward, terminated, truncated, info))
+        if terminated or truncated:
+            break
+    return trace
+
+
+def test_gymnasium_check_env_passes():
+    from gymnasium.utils.env_checker import check_env
+
+    check_env(IrrigationEnv(), skip_render_check=True)
+
+
+def test_sb3_check_env_passes():
+    from stable_baselines3.common.env_checker import check_env
+
+    check_env(IrrigationEnv(), warn=False)
+
+
+def test_registered_ids_make_the_environment():
+    assert set(ENV_IDS) >= {"SimpleIrrigation-Generated-v0", "SimpleIrrigation-Benton2000-v0",
+                            "SimpleIrrigation-Paterson1992-v0", "SimpleIrrigation-HeldOut-v0"}
+    env = gym.make("SimpleIrrigation-Generated-v0")
+    obs, _ = env.reset(seed=0)
+    assert env.observation_space.contains(obs) and env.action_space.shape == (1,)
+    vector = gym.make_vec("SimpleIrrigation-Generated-v0", num_envs=3)
+    assert isinstance(vector.unwrapped, IrrigationVectorEnv)
+    assert vector.reset(seed=0)[0].shape == (3, 20)
+
+
+def test_same_seed_same_actions_same_episode_bit_for_bit():
+    actions = np.linspace(0, 20, 200)
+    first = run(IrrigationEnv(), 7, actions)
+    second = run(IrrigationEnv(), 7, actions)
+    assert len(first) == len(second)
+    for a, b in zip(first, second):
+        np.testing.assert_array_equal(a[0], b[0])
+        assert a[1:4] == b[1:4] and a[4] == b[4]
+    other = run(IrrigationEnv(), 8, actions)
+    assert not np.array_equal(first[0][0], other[0][0])
+
+
+def test_reset_seed_reseeds_the_noise_not_construction():
+    env = IrrigationEnv()
+    first = run(env, 3, [1.0] * 5)
+    run(env, 4, [1.0] * 5)
+    again = run(env, 3, [1.0] * 5)
+    for a, b in zip(first, again):
+        np.testing.assert_array_equal(a[0], b[0])
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_irrigation_raises(bad):
+    env = IrrigationEnv()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([bad], dtype=np.float32))
+    env.step(np.array([1.0], dtype=np.float32))  # the state is still valid
+
+
+@pytest.mark.parametrize("requested, applied", [(-5.0, 0.0), (150.0, 100.0), (40.0, 40.0)])
+def test_out_of_range_irrigation_is_clipped_and_flagged(requested, applied):
+    env = IrrigationEnv()
+    env.reset(seed=0)
+    *_, info = env.step(np.array([requested], dtype=np.float32))
+    assert info["irrigation_applied_mm"] == applied
+    assert info["irrigation_requested_mm"] == requested
+    assert info["irrigation_clipped"] == (requested != applied)
+
+
+def test_step_before_reset_and_after_the_end_raise():
+    env = IrrigationEnv()
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.array([0.0], dtype=np.float32))
+    trace = run(env, 0, [5.0] * 400)
+    assert trace[-1][2] or trace[-1][3]
+    with pytest.raises(RuntimeError, match="ended"):
+        env.step(np.array([0.0], dtype=np.float32))
+
+
+def test_info_keys_are_the_documented_ones():
+    env = IrrigationEnv()
+    _, info = env.reset(seed=0)
+    assert set(info) == set(STATE_INFO_KEYS)
+    *_, info = env.step(np.array([1.0], dtype=np.float32))
+    assert set(info) == set(STATE_INFO_KEYS) | set(STEP_INFO_KEYS)
+
+
+@needs_data
+def test_terminated_at_maturity_truncated_when_the_weather_runs_out():
+    env = IrrigationEnv(noise_free("benton-2000"))
+    trace = run(env, 0, [5.0] * 400)
+    obs, reward, terminated, truncated, info = trace[-1]
+    assert terminated and not truncated and info["mature"] and len(trace) - 1 < 183
+    short = read_agweathernet_csv(BENTON_FILE).window("2000-04-01", 30)
+    trace = run(env, 0, [5.0] * 400, options={"weather": short})
+    obs, reward, terminated, truncated, info = trace[-1]
+    assert truncated and not terminated and not info["mature"] and info["day"] == 30 and len(trace) - 1 == 30
+    assert reward == pytest.approx(-1.25e-4 * 5.0)  # no harvest when truncated
+    assert info["season"] == -1 and info["weather_source"] == str(BENTON_FILE)
+
+
+@needs_data
+def test_observation_without_noise_matches_the_true_state_in_info():
+    env = IrrigationEnv(noise_free("benton-2000"))
+    for obs, _, _, _, info in run(env, 0, [3.0] * 60):
+        assert obs[0] == np.float32(info["true_biomass_t_ha"])
+        assert obs[19] == np.float32(info["true_paw_mm"])
+        assert obs[1] == np.float32(info["thermal_time_degc_d"]) and obs[2] == info["day"]
+        assert obs[8] == 369.0 and obs[5] == pytest.approx((obs[3] + obs[4]) / 2, abs=1e-5)
+
+
+@needs_data
+def test_reward_on_harvest_day_is_cost_plus_yield():
+    env = IrrigationEnv(get_scenario("benton-2000", DATA))
+    trace = run(env, 0, [7.0] * 400)
+    _, reward, terminated, _, info = trace[-1]
+    assert terminated
+    assert reward == pytest.approx(-1.25e-4 * 7.0 + info["yield_t_ha"], rel=1e-12)
+    assert 10 < info["yield_t_ha"] < 30  # t/ha of dry potato
+    rewards = [t[1] for t in trace[1:]]
+    assert info["episode_return"] == pytest.approx(sum(rewards))
+    assert info["normalized_return"] == pytest.approx(sum(rewards) / info["potential_yield_t_ha"])
+    assert 0.9 < info["normalized_return"] <= 1.0
+
+
+@needs_data
+def test_reset_options_pick_a_season():
+    env = IrrigationEnv("heldout", DATA)
+    dates = [env.reset(seed=0, options={"season": k})[1]["date"] for k in range(5)]
+    assert dates == ["2000-04-01", "1992-04-11", "1993-04-06", "1994-04-05", "1995-04-05"]
+    _, info = env.reset(options={"season": 1})
+    assert any("wind_m_s" in fill for fill in info["weather_filled"])
+    with pytest.raises(ValueError, match="season"):
+        env.reset(options={"season": 5})
+
+
+# --- vectorised ------------------------------------------------------------------------------------------
+
+@needs_data
+def test_vector_env_equals_single_envs_on_the_same_seasons():
+    scenario = noise_free("heldout")
+    n = 5
+    actions = np.random.default_rng(0).uniform(-5, 120, size=(200, n))
+    vector = IrrigationVectorEnv(n, scenario)
+    obs, infos = vector.reset(seed=0, options={"season": np.arange(n)})
+    singles = [IrrigationEnv(scenario) for _ in range(n)]
+    single_obs = [env.reset(seed=0, options={"season": k})[0] for k, env in enumerate(singles)]
+    np.testing.assert_array_equal(obs, np.stack(single_obs))
+    running = np.ones(n, dtype=bool)
+    for day in range(200):
+        obs, rewards, terminated, truncated, infos = vector.step(actions[day])
+        for k in np.flatnonzero(running):
+            o, r, te, tr, info = singles[k].step(actions[day, k:k + 1])
+            np.testing.assert_array_equal(obs[k], o)
+            assert (rewards[k], terminated[k], truncated[k]) == (r, te, tr)
+            for key in ("true_biomass_t_ha", "true_paw_mm", "irrigation_applied_mm", "irrigation_clipped",
+                        "rain_mm", "runoff_mm", "drainage_mm", "transpiration_mm", "et0_mm", "yield_t_ha",
+                        "episode_return", "normalized_return"):
+                assert infos[key][k] == info[key], key
+            running[k] = not (te or tr)
+        if not running.any():
+            break
+    assert not running.any()
+
+
+@needs_data
+def test_vector_env_given_weathers_and_autoreset_next_step():
+    scenario = noise_free("benton-2000")
+    short = read_agweathernet_csv(BENTON_FILE).window("2000-04-01", 10)
+    vector = IrrigationVectorEnv(2, scenario)
+    vector.reset(seed=0, options={"weathers": [short, short.window("2000-04-01", 5)]})
+    for day in range(5):
+        obs, rewards, terminated, truncated, infos = vector.step(np.zeros(2))
+    assert truncated.tolist() == [False, True] and infos["day"].tolist() == [5, 5]
+    obs, rewards, terminated, truncated, infos = vector.step(np.array([0.0, 50.0]))
+    # Field 1 restarted on the scenario's season: day 0, reward 0, its action ignored.
+    assert infos["day"].tolist() == [6, 0] and rewards[1] == 0.0 and not truncated[1]
+    assert infos["_irrigation_applied_mm"].tolist() == [True, False]
+    assert infos["season"][1] == 0 and obs[1, 2] == 0
+
+
+def test_vector_env_same_step_autoreset_keeps_the_final_observation():
+    vector = IrrigationVectorEnv(16, "benton-generated", autoreset_mode=AutoresetMode.SAME_STEP)
+    vector.reset(seed=1)
+    for _ in range(250):
+        obs, rewards, terminated, truncated, infos = vector.step(np.full((16, 1), 4.0))
+        ended = terminated | truncated
+        if ended.any():
+            k = np.flatnonzero(ended)[0]
+            assert infos["_final_obs"][k] and infos["final_obs"][k, 2] > 100 and obs[k, 2] == 0
+            assert infos["final_info"]["mature"][k] and rewards[k] > 5
+            return
+    pytest.fail("no field ended")
+
+
+def test_vector_env_rejects_non_finite_actions():
+    vector = IrrigationVectorEnv(3)
+    vector.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        vector.step(np.array([1.0, np.nan, 2.0]))
+
+
+def test_vector_env_is_deterministic_per_seed():
+    def episode(seed):
+        vector = IrrigationVectorEnv(4)
+        out = [vector.reset(seed=seed)[0]]
+        out += [vector.step(np.full(4, 2.0))[0] for _ in range(20)]
+        return np.stack(out)
+
+    np.testing.assert_array_equal(episode(5), episode(5))
+    assert not np.array_equal(episode(5), episode(6))
+
+
+def test_sb3_vec_env_runs_and_reports_terminal_observations():
+    from crop_sim_ros.task.sb3_vec import make_sb3_vec_env
+
+    venv = make_sb3_vec_env("benton-generated", n_envs=4, seed=0)
+    obs = venv.reset()
+    assert obs.shape == (4, 20)
+    for _ in range(250):
+        obs, rewards, dones, infos = venv.step(np.full((4, 1), 4.0, dtype=np.float32))
+        if dones.any():
+            k = np.flatnonzero(dones)[0]
+            assert infos[k]["terminal_observation"].shape == (20,) and obs[k, 2] == 0
+            assert "normalized_return" in infos[k] and infos[k]["TimeLimit.truncated"] is False
+            return
+    pytest.fail("no field ended")
+
+
+def test_task_layer_imports_neither_torch_nor_rclpy():
+    code = ("import sys, crop_sim_ros.task, crop_sim_ros.task.bench; "
+            "bad = [m for m in ('torch', 'rclpy', 'crop_agent_ros', 'stable_baselines3') if m in sys.modules]; "
+            "print(bad); sys.exit(bool(bad))")
+    result = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).resolve().parents[1],
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
