@@ -213,7 +213,7 @@ def test_forecast_wind_is_the_noisy_tomorrows_wind():
     assert np.all(obs[:, 10] == np.float32(table.weather[np.arange(200), 0, 7]))  # today's: exact
     differs = obs[:, 18] != np.float32(true_tomorrow)
     assert differs.mean() > 0.9
-    np.testing.assert_array_equal(obs[:, 11:18], table.observed_weather[np.arange(200), 0, 8:15])
+    np.testing.assert_array_equal(obs[:, 11:18], table.observation_rows[np.arange(200), 0, 11:18])
 
 
 def test_season_ends_at_maturity_not_a_fixed_length():

@@ -54,6 +54,7 @@ import numpy as np
 
 from ..model import (CropState, DailyFluxes, DailyWeather, FieldParameters, harvestable_yield_kg_ha,
                      initial_state, repeat_parameters, step)
+from ..model.simple import scalar_parameters, scalar_state
 from ..weather import WeatherSeries
 from .scenario import ObservationNoise, Scenario
 
@@ -69,6 +70,7 @@ FORECAST = slice(11, 19)
 BIOMASS, PAW = 0, 19
 # Column of each model input in SeasonTable.weather.
 TMAX, TMIN, RAIN, SRAD = (WEATHER_NAMES.index(n) for n in ("tmax_degc", "tmin_degc", "rain_mm", "srad_mj_m2"))
+# SeasonTable.model_weather columns: the DailyWeather fields in order (TMAX, TMIN, SRAD, rain, ET0).
 # Bounds of a physically possible observation: noisy values below the lower bound are clipped to it.
 OBSERVATION_LOW = np.array([0.0, -np.inf, 0.0] + [-np.inf, -np.inf, -np.inf, 0.0, 0.0, 0.0, 0.0, 0.0] * 2 + [0.0],
                            dtype=np.float32)
@@ -86,8 +88,12 @@ class SeasonTable:
     ================= =============== ==================================================================
     weather           (M, D + 2, 8)   true daily weather in observation order (WEATHER_NAMES), each
                                       season padded after its last day with copies of that day
-    observed_weather  (M, D + 1, 16)  float32 rows [weather of day d, weather of day d + 1]: the true
-                                      part of observation columns 3-18 on day d
+    observation_rows  (M, D + 1, 20)  float32 observation of day d without the crop's values: columns
+                                      2-18 (day, today's and tomorrow's true weather) filled, 0, 1
+                                      and 19 (biomass, TT, PAW) zero
+    model_weather     (5, M, D + 2)   the model's daily inputs in DailyWeather order: TMAX, TMIN degC,
+                                      SRAD MJ m-2, rain mm, ET0 mm (padded likewise; variable first, so
+                                      that each gathers contiguously)
     et0_mm            (M, D + 2)      reference evapotranspiration, mm d-1 (padded likewise)
     n_days            (M,)            days of weather of each season (<= max_season_days)
     sowing_dates      (M,)            datetime64[D], the first day of each season
@@ -97,7 +103,8 @@ class SeasonTable:
     """
 
     weather: np.ndarray
-    observed_weather: np.ndarray
+    observation_rows: np.ndarray
+    model_weather: np.ndarray
     et0_mm: np.ndarray
     n_days: np.ndarray
     sowing_dates: np.ndarray
@@ -135,10 +142,16 @@ def season_table(scenario: Scenario, seasons: list[WeatherSeries]) -> SeasonTabl
 def _frozen_table(weather: np.ndarray, et0_mm: np.ndarray, n_days: np.ndarray, sowing_dates: np.ndarray,
                   potential_yield_t_ha: np.ndarray, sources: tuple, filled: tuple) -> SeasonTable:
     """A SeasonTable of these arrays (read-only: tables are cached and shared) and the observed weather."""
-    observed = np.concatenate([weather[:, :-1], weather[:, 1:]], axis=2).astype(np.float32)
-    for array in (weather, observed, et0_mm, n_days, sowing_dates, potential_yield_t_ha):
+    observed = np.zeros(weather.shape[:2] + (OBSERVATION_SIZE,), dtype=np.float32)[:, :-1]
+    observed[..., 2] = np.arange(observed.shape[1])
+    observed[..., TODAY] = weather[:, :-1]
+    observed[..., FORECAST] = weather[:, 1:]
+    observed = np.ascontiguousarray(observed)
+    model = _model_weather(weather, et0_mm)
+    for array in (weather, observed, model, et0_mm, n_days, sowing_dates, potential_yield_t_ha):
         array.setflags(write=False)
-    return SeasonTable(weather, observed, et0_mm, n_days, sowing_dates, potential_yield_t_ha, sources, filled)
+    return SeasonTable(weather, observed, model, et0_mm, n_days, sowing_dates, potential_yield_t_ha, sources,
+                       filled)
 
 
 @functools.lru_cache(maxsize=16)
@@ -147,10 +160,25 @@ def scenario_table(scenario: Scenario) -> SeasonTable:
     return season_table(scenario, scenario.load_seasons())
 
 
-def _daily_weather(weather: np.ndarray, et0_mm: np.ndarray, season: np.ndarray, day: np.ndarray) -> DailyWeather:
-    """The model's weather of day ``day`` of season ``season`` (index arrays of shape (N,))."""
-    today = weather[season, day]
-    return DailyWeather(today[:, TMAX], today[:, TMIN], today[:, SRAD], today[:, RAIN], et0_mm[season, day])
+def _model_weather(weather: np.ndarray, et0_mm: np.ndarray) -> np.ndarray:
+    """(5, M, D) model inputs in DailyWeather order from the table's weather (M, D, 8) and ET0 (M, D)."""
+    return np.ascontiguousarray(np.stack([weather[:, :, TMAX], weather[:, :, TMIN], weather[:, :, SRAD],
+                                          weather[:, :, RAIN], et0_mm]))
+
+
+def _row_index(table_days: int, season, day):
+    """Index of (season, day) in a table flattened over seasons x days (np.take beats 2-D fancy indexing)."""
+    return season * table_days + day
+
+
+def _daily_weather(model_weather: np.ndarray, season, day, xp=np) -> DailyWeather:
+    """The model's weather of day ``day`` of season ``season``: index arrays of shape (N,), or two ints
+    for one field held as Python floats (``xp`` = SCALAR_MATH)."""
+    if xp is np:
+        index = _row_index(model_weather.shape[2], season, day)
+        flat = model_weather.reshape(len(model_weather), -1)
+        return DailyWeather(*(np.take(variable, index) for variable in flat))
+    return DailyWeather(*model_weather[:, season, day].tolist())
 
 
 def potential_yield_t_ha(params: FieldParameters, weather: np.ndarray, et0_mm: np.ndarray,
@@ -162,8 +190,9 @@ def potential_yield_t_ha(params: FieldParameters, weather: np.ndarray, et0_mm: n
     state = initial_state(fields_params)
     season = np.arange(m)
     potential = np.full(m, np.nan)
+    model_weather = _model_weather(weather, et0_mm)
     for d in range(int(n_days.max())):
-        state, _ = step(fields_params, state, _daily_weather(weather, et0_mm, season, np.full(m, d)), 0.0)
+        state, _ = step(fields_params, state, _daily_weather(model_weather, season, np.full(m, d)), 0.0)
         ends = np.isnan(potential) & (state.mature | (d + 1 >= n_days))
         potential[ends] = harvestable_yield_kg_ha(fields_params, state)[ends] / KG_PER_T
     return potential
@@ -180,9 +209,17 @@ class TaskParams:
     irrigation_cost_per_mm: float
     max_irrigation_mm: float
 
-    @property
+    @functools.cached_property
     def noisy(self) -> bool:
+        """Any observation noise at all (cached: the observation is on the hot path)."""
         return bool(self.noise_std.any())
+
+
+def scalar_task_params(params: TaskParams) -> TaskParams:
+    """The first field of ``params`` held as Python floats: the one-field fast path (``xp`` = SCALAR_MATH),
+    bit-identical to the array path."""
+    return TaskParams(scalar_parameters(params.fields), scalar_state(params.sowing_state), params.noise_std,
+                      params.irrigation_cost_per_mm, params.max_irrigation_mm)
 
 
 def task_params(scenario: Scenario, n_fields: int = 1) -> TaskParams:
@@ -199,11 +236,14 @@ class TaskState:
     """N fields: the crop (at the start of its day) and the index of each field's season in the table."""
 
     crop: CropState
-    season: np.ndarray
+    season: np.ndarray | int
 
 
-def initial(params: TaskParams, season: np.ndarray) -> TaskState:
-    """Every field on its sowing day, in the seasons ``season`` (indices into the table, shape (N,))."""
+def initial(params: TaskParams, season) -> TaskState:
+    """Every field on its sowing day, in the seasons ``season`` (indices into the table, shape (N,); an
+    int for scalar ``params``)."""
+    if isinstance(season, int):
+        return TaskState(params.sowing_state, season)
     return TaskState(params.sowing_state, np.asarray(season, dtype=np.int64))
 
 
@@ -216,39 +256,42 @@ def restart(params: TaskParams, state: TaskState, mask: np.ndarray, season: np.n
 
 
 def transition(params: TaskParams, table: SeasonTable, state: TaskState,
-               irrigation_mm: np.ndarray) -> tuple[TaskState, DailyFluxes]:
+               irrigation_mm: np.ndarray, xp=np) -> tuple[TaskState, DailyFluxes]:
     """One day of every field with ``irrigation_mm`` (checked, within [0, max]) applied; the next state and
-    the day's fluxes. Fields past their weather (truncated) repeat its last day."""
-    weather = _daily_weather(table.weather, table.et0_mm, state.season, state.crop.days_since_sowing)
-    crop, fluxes = step(params.fields, state.crop, weather, irrigation_mm)
+    the day's fluxes. Fields past their weather (truncated) repeat its last day. ``xp``: numpy, or
+    SCALAR_MATH for one field held as Python floats (:func:`scalar_task_params`)."""
+    weather = _daily_weather(table.model_weather, state.season, state.crop.days_since_sowing, xp)
+    crop, fluxes = step(params.fields, state.crop, weather, irrigation_mm, xp)
     return TaskState(crop, state.season), fluxes
 
 
 def observation(params: TaskParams, table: SeasonTable, state: TaskState, rng: np.random.Generator) -> np.ndarray:
-    """The (N, 20) float32 observations of ``state`` (see the module table); noise drawn from ``rng``."""
-    day = state.crop.days_since_sowing
-    obs = np.empty((len(day), OBSERVATION_SIZE), dtype=np.float32)
-    obs[:, BIOMASS] = state.crop.biomass_kg_ha / KG_PER_T
-    obs[:, 1] = state.crop.thermal_time_degc_d
-    obs[:, 2] = day
-    # Today's and tomorrow's weather (the table's padding makes the day after the last day the last day).
-    obs[:, TODAY.start:FORECAST.stop] = table.observed_weather[state.season, day]
-    obs[:, PAW] = state.crop.plant_available_water_mm
+    """The (N, 20) float32 observations of ``state`` (see the module table); noise drawn from ``rng``.
+    A scalar state (one field as Python floats) gives one observation of shape (20,)."""
+    crop = state.crop
+    # Day, today's and tomorrow's weather (the table's padding makes the day after the last day the last day).
+    rows = table.observation_rows
+    obs = np.take(rows.reshape(-1, OBSERVATION_SIZE),
+                  _row_index(rows.shape[1], state.season, crop.days_since_sowing), axis=0)
+    obs[..., BIOMASS] = crop.biomass_kg_ha / KG_PER_T
+    obs[..., 1] = crop.thermal_time_degc_d
+    obs[..., PAW] = crop.plant_available_water_mm
     if params.noisy:
         # Noise columns: the 8 forecast values and PAW (observation columns 11-19), then biomass.
-        noise = rng.standard_normal((len(day), len(params.noise_std)), dtype=np.float32)
+        noise = rng.standard_normal(obs.shape[:-1] + (len(params.noise_std),), dtype=np.float32)
         noise *= params.noise_std
-        obs[:, FORECAST.start:] += noise[:, :-1]
-        obs[:, BIOMASS] += noise[:, -1]
+        obs[..., FORECAST.start:] += noise[..., :-1]
+        obs[..., BIOMASS] += noise[..., -1]
         np.maximum(obs, OBSERVATION_LOW, out=obs)
     return obs
 
 
-def reward(params: TaskParams, state: TaskState, irrigation_mm: np.ndarray, next_state: TaskState) -> np.ndarray:
+def reward(params: TaskParams, state: TaskState, irrigation_mm: np.ndarray, next_state: TaskState,
+           xp=np) -> np.ndarray:
     """C_I * irrigation every day, plus the dry yield (t/ha) on the day the field matures."""
-    harvest = next_state.crop.mature & ~state.crop.mature
+    harvest = next_state.crop.mature & xp.logical_not(state.crop.mature)
     yield_t_ha = harvestable_yield_kg_ha(params.fields, next_state.crop) / KG_PER_T
-    return params.irrigation_cost_per_mm * irrigation_mm + np.where(harvest, yield_t_ha, 0.0)
+    return params.irrigation_cost_per_mm * irrigation_mm + xp.where(harvest, yield_t_ha, 0.0)
 
 
 def terminal(state: TaskState) -> np.ndarray:
@@ -256,9 +299,9 @@ def terminal(state: TaskState) -> np.ndarray:
     return state.crop.mature
 
 
-def truncated(table: SeasonTable, state: TaskState) -> np.ndarray:
+def truncated(table: SeasonTable, state: TaskState, xp=np) -> np.ndarray:
     """The field's weather (at most max_season_days days) ran out before maturity."""
-    return ~state.crop.mature & (state.crop.days_since_sowing >= table.n_days[state.season])
+    return xp.logical_not(state.crop.mature) & (state.crop.days_since_sowing >= table.n_days[state.season])
 
 
 def stack_tables(tables: list[SeasonTable]) -> SeasonTable:

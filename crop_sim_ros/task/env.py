@@ -10,6 +10,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..model import harvestable_yield_kg_ha
+from ..model.simple import SCALAR_MATH
 from ..weather import WeatherSeries
 from . import core
 from .scenario import Scenario, get_scenario
@@ -123,6 +124,8 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
         self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario, data_dir)
         self.seasons = core.scenario_table(self.scenario)
         self.params = core.task_params(self.scenario)
+        # One field as Python floats: the model's scalar path, bit-identical to the array path and ~6x faster.
+        self._one = core.scalar_task_params(self.params)
         self.action_space = gym.spaces.Box(0.0, self.scenario.max_irrigation_mm, (1,), np.float32)
         self.observation_space = gym.spaces.Box(core.OBSERVATION_LOW, core.OBSERVATION_HIGH, dtype=np.float32)
         self._table = self.seasons
@@ -149,7 +152,14 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
                 raise ValueError(f"season {season} is outside 0..{len(self.seasons) - 1} of scenario "
                                  f"{self.scenario.name!r}")
             self._season = int(season)
-        self._state = core.initial(self.params, np.array([max(self._season, 0)]))
+        self._state = core.initial(self._one, max(self._season, 0))
+        k = self._state.season
+        # What stays the same all season, computed once per reset (the step is the hot path).
+        self._dates = np.datetime_as_string(self._table.sowing_dates[k]
+                                            + np.arange(self._table.observation_rows.shape[1])).tolist()
+        self._season_info = {"season": self._season, "weather_source": self._table.sources[k],
+                             "weather_filled": self._table.filled[k],
+                             "potential_yield_t_ha": float(self._table.potential_yield_t_ha[k])}
         self._ended = False
         self._return = 0.0
         return self._observe(), self._state_info()
@@ -159,47 +169,44 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("call reset() before step()")
         if self._ended:
             raise RuntimeError("the season has ended (terminated or truncated); call reset()")
-        requested = np.asarray(action, dtype=np.float64)
-        if requested.size != 1:
-            raise ValueError(f"action must be one irrigation amount in mm, got shape {requested.shape}")
-        requested = float(requested.reshape(()))
+        try:
+            requested = float(action[0] if np.shape(action) == (1,) else action)
+        except (TypeError, ValueError):
+            raise ValueError(f"action must be one irrigation amount in mm, got {action!r}") from None
         if not math.isfinite(requested):
             raise ValueError(f"irrigation must be a finite number of mm, got {requested}")
         applied = min(max(requested, 0.0), self.scenario.max_irrigation_mm)
         state = self._state
-        self._state, fluxes = core.transition(self.params, self._table, state, applied)
-        reward = float(core.reward(self.params, state, applied, self._state)[0])
-        terminated = bool(core.terminal(self._state)[0])
-        truncated = bool(core.truncated(self._table, self._state)[0])
+        self._state, fluxes = core.transition(self._one, self._table, state, applied, SCALAR_MATH)
+        reward = core.reward(self._one, state, applied, self._state, SCALAR_MATH)
+        terminated = core.terminal(self._state)
+        truncated = bool(core.truncated(self._table, self._state, SCALAR_MATH))
         self._ended = terminated or truncated
         self._return += reward
         info = self._state_info()
         info.update(irrigation_requested_mm=requested, irrigation_applied_mm=applied,
                     irrigation_clipped=applied != requested,
-                    rain_mm=float(self._table.weather[state.season[0], info["day"] - 1, core.RAIN]),
-                    runoff_mm=float(fluxes.runoff_mm[0]), drainage_mm=float(fluxes.drainage_mm[0]),
-                    transpiration_mm=float(fluxes.transpiration_mm[0]), et0_mm=float(fluxes.et0_mm[0]),
-                    arid=float(fluxes.arid[0]), episode_return=self._return,
-                    normalized_return=self._return / info["potential_yield_t_ha"])
+                    rain_mm=float(self._table.weather[state.season, info["day"] - 1, core.RAIN]),
+                    runoff_mm=fluxes.runoff_mm, drainage_mm=fluxes.drainage_mm,
+                    transpiration_mm=fluxes.transpiration_mm, et0_mm=fluxes.et0_mm,
+                    arid=fluxes.arid, episode_return=self._return,
+                    normalized_return=self._return / self._season_info["potential_yield_t_ha"])
         return self._observe(), reward, terminated, truncated, info
 
     def _observe(self) -> np.ndarray:
-        return core.observation(self.params, self._table, self._state, self.np_random)[0]
+        return core.observation(self._one, self._table, self._state, self.np_random)
 
     def _state_info(self) -> dict[str, Any]:
-        crop, k = self._state.crop, int(self._state.season[0])
-        day = int(crop.days_since_sowing[0])
+        crop = self._state.crop
+        day = crop.days_since_sowing
         return {
             "day": day,
-            "date": str(self._table.sowing_dates[k] + day),
-            "season": self._season,
-            "weather_source": self._table.sources[k],
-            "weather_filled": self._table.filled[k],
-            "true_biomass_t_ha": float(crop.biomass_kg_ha[0]) / core.KG_PER_T,
-            "true_paw_mm": float(crop.plant_available_water_mm[0]),
-            "thermal_time_degc_d": float(crop.thermal_time_degc_d[0]),
-            "fsolar": float(crop.fsolar[0]),
-            "yield_t_ha": float(harvestable_yield_kg_ha(self.params.fields, crop)[0]) / core.KG_PER_T,
-            "mature": bool(crop.mature[0]),
-            "potential_yield_t_ha": float(self._table.potential_yield_t_ha[k]),
+            "date": self._dates[day],
+            "true_biomass_t_ha": crop.biomass_kg_ha / core.KG_PER_T,
+            "true_paw_mm": crop.plant_available_water_mm,
+            "thermal_time_degc_d": crop.thermal_time_degc_d,
+            "fsolar": crop.fsolar,
+            "yield_t_ha": harvestable_yield_kg_ha(self._one.fields, crop) / core.KG_PER_T,
+            "mature": crop.mature,
+            **self._season_info,
         }
