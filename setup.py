@@ -22,7 +22,9 @@ setup(
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/launch", glob("launch/*.py")),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
-        (f"lib/{PACKAGE}", glob("scripts/*")),
+        (f"share/{PACKAGE}/msg_examples", glob("msg_examples/*.yaml")),
+        # wrappers so that `ros2 run crop_sim_ros sim_node` / `agent_node` find the nodes (executable bit kept)
+        (f"lib/{PACKAGE}", ["scripts/sim_node", "scripts/agent_node"]),
     ],
     python_requires=">=3.11",
     install_requires=["numpy", "gymnasium", "refet", "PyYAML", "matplotlib"],

@@ -96,3 +96,21 @@ def tuned_refill_policy(path: Path = REFILL_FILE) -> RefillPolicy:
     p = load_tuned(path)["parameters"]
     return RefillPolicy(p["threshold_mm"], p["target_mm"], p["skip_rain_mm"],
                         count_today_rain=p.get("count_today_rain", True), name="refill")
+
+
+class DemandMarginPolicy(BasePolicy):
+    """Refill to today's estimated no-stress level plus a margin: ``mm = ET0/0.096 + margin - PAW - rain``,
+    ET0 by FAO-56 Penman-Monteith from today's observed weather (:func:`crop_agent_ros.policies.sb3.
+    estimated_et0_mm`). It is what the PPO policy in ``margin`` mode does with a zero action: a reference
+    showing how much of PPO's result comes from that design rather than from learning."""
+
+    def __init__(self, margin_mm: float = 4.0, name: str | None = None):
+        self.margin_mm = float(margin_mm)
+        self.name = name or f"margin{self.margin_mm:g}"
+
+    def _act_batch(self, obs):
+        from .sb3 import action_to_mm
+        return action_to_mm(np.zeros(len(obs)), obs, "margin", margin_center_mm=self.margin_mm)
+
+    def describe(self):
+        return {"name": self.name, "margin_mm": self.margin_mm}

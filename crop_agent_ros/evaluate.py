@@ -1,0 +1,207 @@
+"""``crop-sim evaluate``: run policies on held-out seasons with several observation-noise seeds.
+
+For each policy, season and noise seed: return, normalized return (return / the season's potential yield:
+no water stress, no water cost), yield t/ha, irrigation mm, water productivity (yield kg/ha per m3/ha of
+irrigation + rain received from sowing to harvest; 1 mm = 10 m3/ha) and regret (the hindsight oracle's
+return on the season minus the policy's). Prints a table, writes ``evaluation.csv`` (one row per run),
+``evaluation.json`` (summary, paired comparisons, the oracle's search certificate) and one PNG per policy
+of the first season with the first seed (biomass, PAW, rain and irrigation by day).
+
+    crop-sim evaluate --policies zero,constant10,best-constant,refill,ppo,oracle --seasons heldout --seeds 0..9
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+DEFAULT_POLICIES = "zero,constant10,best-constant,refill,ppo,oracle"
+# the hand-made baselines PPO must beat (margin<mm>, the PPO policy's own starting point, is reported apart)
+RULES = ("zero", "constant10", "best-constant", "refill")
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--policies", default=DEFAULT_POLICIES,
+                        help=f"comma-separated policy names (default {DEFAULT_POLICIES}); also constant<mm>, "
+                             "ppo:<path.zip>")
+    parser.add_argument("--seasons", default="heldout", help="scenario whose seasons to run (default heldout)")
+    parser.add_argument("--seeds", default="0..9", help="observation-noise seeds: 'A..B' (inclusive) or 'a,b,c'")
+    parser.add_argument("--ppo-path", default=None, help="policy file for 'ppo' (default: the shipped one)")
+    parser.add_argument("--out", type=Path, default=Path("runs/evaluate"), help="output directory")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+
+
+def parse_seeds(text: str) -> list[int]:
+    text = text.strip()
+    if ".." in text:
+        low, high = text.split("..", 1)
+        seeds = list(range(int(low), int(high) + 1))
+    else:
+        seeds = [int(s) for s in text.split(",") if s.strip()]
+    if not seeds:
+        raise ValueError(f"no seeds in {text!r}")
+    return seeds
+
+
+def evaluate(policy_names: list[str], scenario_name: str, seeds: list[int], ppo_path=None, record: bool = True):
+    """Run every policy; returns (rows, episodes by policy, oracle results, contexts)."""
+    from .policies import make_policy
+    from .policies.oracle import OraclePolicy
+    from .policies.rollout import run_episodes, scenario_of, season_contexts
+    scenario = scenario_of(scenario_name)
+    contexts = season_contexts(scenario)
+    m = len(contexts)
+    seasons = np.arange(m)
+    oracle = OraclePolicy()
+    oracle.begin_season(contexts)
+    oracle_return = np.array([r.return_value for r in oracle.results])
+    rows, episodes = [], {}
+    for name in policy_names:
+        policy = oracle if name == "oracle" else make_policy(name, ppo_path=ppo_path)
+        started = time.perf_counter()
+        runs = []
+        for seed in seeds:
+            ep = run_episodes(policy, scenario, seasons, seed=seed, record=record and seed == seeds[0],
+                              contexts=contexts)
+            runs.append(ep)
+            for k in range(m):
+                rows.append({
+                    "policy": name, "season": contexts[k].name, "source": contexts[k].extra["source"],
+                    "seed": seed, "return": ep.episode_return[k], "normalized_return": ep.normalized_return[k],
+                    "yield_t_ha": ep.yield_t_ha[k], "irrigation_mm": ep.water_mm[k], "rain_mm": ep.rain_mm[k],
+                    "water_productivity_kg_m3": ep.water_productivity_kg_m3[k],
+                    "regret": oracle_return[k] - ep.episode_return[k],
+                    "potential_yield_t_ha": ep.potential_yield_t_ha[k], "days": int(ep.days[k]),
+                    "matured": bool(ep.matured[k])})
+        episodes[name] = runs
+        print(f"  {name}: {len(seeds)} seeds x {m} seasons in {time.perf_counter() - started:.1f} s",
+              file=sys.stderr)
+    return rows, episodes, oracle.results, contexts
+
+
+METRICS = ("return", "normalized_return", "yield_t_ha", "irrigation_mm", "water_productivity_kg_m3", "regret")
+
+
+def summarize(rows: list[dict]) -> dict:
+    """Per policy: mean and std (over seasons x seeds) of each metric, and per-season mean return."""
+    summary = {}
+    for name in dict.fromkeys(r["policy"] for r in rows):
+        mine = [r for r in rows if r["policy"] == name]
+        entry = {"runs": len(mine)}
+        for metric in METRICS:
+            values = np.array([r[metric] for r in mine], dtype=float)
+            entry[metric] = {"mean": float(values.mean()), "std": float(values.std())}
+        entry["per_season_return"] = {s: float(np.mean([r["return"] for r in mine if r["season"] == s]))
+                                      for s in dict.fromkeys(r["season"] for r in mine)}
+        summary[name] = entry
+    return summary
+
+
+def paired_difference(rows: list[dict], a: str, b: str) -> dict | None:
+    """Return of ``a`` minus ``b`` on the same season and seed: mean, standard error, wins."""
+    key = {(r["season"], r["seed"]): r["return"] for r in rows if r["policy"] == b}
+    diffs = np.array([r["return"] - key[(r["season"], r["seed"])] for r in rows
+                      if r["policy"] == a and (r["season"], r["seed"]) in key])
+    if diffs.size == 0:
+        return None
+    return {"mean": float(diffs.mean()), "stderr": float(diffs.std(ddof=1) / np.sqrt(diffs.size)) if diffs.size > 1
+            else float("nan"), "n": int(diffs.size), "wins": int((diffs > 0).sum()), "ties": int((diffs == 0).sum())}
+
+
+def format_table(summary: dict) -> str:
+    header = (f"{'policy':<15}{'return':>17}{'normalized':>12}{'yield t/ha':>12}{'water mm':>10}"
+              f"{'WP kg/m3':>10}{'regret':>17}")
+    lines = [header, "-" * len(header)]
+    for name, e in summary.items():
+        lines.append(f"{name:<15}{e['return']['mean']:>9.4f} ±{e['return']['std']:<6.3f}"
+                     f"{e['normalized_return']['mean']:>12.4f}{e['yield_t_ha']['mean']:>12.3f}"
+                     f"{e['irrigation_mm']['mean']:>10.0f}{e['water_productivity_kg_m3']['mean']:>10.3f}"
+                     f"{e['regret']['mean']:>9.4f} ±{e['regret']['std']:<6.4f}")
+    lines.append("(mean ± std over seasons x noise seeds; the std is mostly the seasons' spread: see the paired "
+                 "differences for rankings)")
+    return "\n".join(lines)
+
+
+def plot_policy(name: str, episodes, context, path: Path) -> None:
+    """Biomass, PAW, rain and irrigation by day of the first field of ``episodes`` (a recorded run)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    daily = episodes.daily
+    days = int(episodes.days[0])
+    t = np.arange(days)
+    fig, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
+    axes[0].plot(t, daily["biomass_t_ha"][:days, 0], color="tab:green")
+    axes[0].set_ylabel("biomass, t/ha")
+    axes[0].set_title(f"{name} on {context.name} ({context.extra['source'].split('/')[-1]}): return "
+                      f"{episodes.episode_return[0]:.3f}, yield {episodes.yield_t_ha[0]:.2f} t/ha, "
+                      f"irrigation {episodes.water_mm[0]:.0f} mm", fontsize=9)
+    axes[1].plot(t, daily["paw_mm"][:days, 0], color="tab:blue", label="PAW (true, start of day)")
+    axes[1].plot(t, np.asarray(context.et0_mm[:days]) / 0.096, color="tab:gray", lw=0.8,
+                 label="ET0 / 0.096 (no-stress level)")
+    axes[1].set_ylabel("mm")
+    axes[1].legend(fontsize=8)
+    axes[2].bar(t, daily["rain_mm"][:days, 0], color="tab:cyan", label="rain")
+    axes[2].bar(t, daily["irrigation_mm"][:days, 0], bottom=daily["rain_mm"][:days, 0], color="tab:orange",
+                label="irrigation")
+    axes[2].set_ylabel("mm/day")
+    axes[2].set_xlabel("days since sowing")
+    axes[2].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run(args) -> int:
+    names = [n.strip() for n in args.policies.split(",") if n.strip()]
+    seeds = parse_seeds(args.seeds)
+    print(f"evaluating {', '.join(names)} on '{args.seasons}' with noise seeds {seeds[0]}..{seeds[-1]} "
+          f"({len(seeds)} seeds)", file=sys.stderr)
+    rows, episodes, oracle_results, contexts = evaluate(names, args.seasons, seeds, args.ppo_path,
+                                                        record=not args.no_plots)
+    summary = summarize(rows)
+    comparisons = {}
+    if "ppo" in summary:
+        for other in [n for n in names if n not in ("ppo", "oracle")]:
+            comparisons[f"ppo - {other}"] = paired_difference(rows, "ppo", other)
+    rules_present = [n for n in names if n in RULES and n in summary]
+    best_rule = max(rules_present, key=lambda n: summary[n]["return"]["mean"]) if rules_present else None
+    print(format_table(summary))
+    if best_rule:
+        print(f"best rule of {', '.join(rules_present)}: {best_rule} "
+              f"(regret {summary[best_rule]['regret']['mean']:.4f})")
+        if "ppo" in summary:
+            ratio = summary["ppo"]["regret"]["mean"] / max(summary[best_rule]["regret"]["mean"], 1e-12)
+            print(f"ppo regret / best rule regret = {ratio:.2f}")
+    for label, diff in comparisons.items():
+        if diff:
+            print(f"{label}: {diff['mean']:+.4f} ± {diff['stderr']:.4f} (s.e.) t/ha, wins {diff['wins']}/{diff['n']}")
+    oracle_info = [{"season": c.name, "return": r.return_value, "potential_yield_t_ha": r.potential_yield_t_ha,
+                    "bound_gap": r.bound_gap, "stress_free_gap": r.stress_free_gap,
+                    "stress_free_water_floor_mm": r.stress_free_water_floor_mm, "last_refinement_gain": r.last_gain,
+                    "refinement_gain_over_family": r.refinement_gain, "family": r.family_parameters,
+                    "yield_t_ha": r.yield_t_ha, "irrigation_mm": r.water_mm, "evaluations": r.evaluations}
+                   for c, r in zip(contexts, oracle_results)]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "evaluation.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    (out / "evaluation.json").write_text(json.dumps({
+        "command": "crop-sim " + " ".join(sys.argv[1:]) if sys.argv and "crop" in sys.argv[0] else None,
+        "policies": names, "scenario": args.seasons, "seeds": seeds, "ppo_path": args.ppo_path,
+        "water_productivity": "yield kg/ha per m3/ha of irrigation + rain from sowing to harvest",
+        "summary": summary, "best_rule": best_rule, "paired_differences": comparisons, "oracle": oracle_info},
+        indent=2) + "\n")
+    if not args.no_plots:
+        for name, runs in episodes.items():
+            plot_policy(name, runs[0], contexts[0], out / f"{name.replace(':', '_').replace('/', '_')}.png")
+    print(f"wrote {out}/evaluation.csv, evaluation.json" + ("" if args.no_plots else " and one PNG per policy"),
+          file=sys.stderr)
+    return 0

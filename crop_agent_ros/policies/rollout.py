@@ -1,0 +1,117 @@
+"""Run a policy on whole seasons of a task scenario, many fields at once (the batched task environment).
+
+Used by evaluation, by the rule tuning and by the training's held-out evaluation callback.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .base import SeasonContext
+
+
+@dataclass
+class Episodes:
+    """Results of N fields, one episode each (arrays of shape (N,)); ``daily`` (if recorded) holds (D, N)
+    arrays: biomass_t_ha (true, start of day), paw_mm (true, start of day), rain_mm, irrigation_mm."""
+
+    season: np.ndarray
+    episode_return: np.ndarray
+    yield_t_ha: np.ndarray
+    water_mm: np.ndarray
+    rain_mm: np.ndarray
+    potential_yield_t_ha: np.ndarray
+    days: np.ndarray
+    matured: np.ndarray
+    daily: dict | None = None
+
+    @property
+    def normalized_return(self) -> np.ndarray:
+        return self.episode_return / self.potential_yield_t_ha
+
+    @property
+    def water_productivity_kg_m3(self) -> np.ndarray:
+        """Yield (kg/ha) per m3/ha of water received (irrigation + rain, sowing to harvest; 1 mm = 10 m3/ha)."""
+        return self.yield_t_ha * 1000.0 / ((self.water_mm + self.rain_mm) * 10.0)
+
+
+def scenario_of(scenario):
+    from crop_sim_ros.task import Scenario, get_scenario
+    return scenario if isinstance(scenario, Scenario) else get_scenario(scenario)
+
+
+def season_contexts(scenario) -> list[SeasonContext]:
+    """The true weather of every season of ``scenario`` (for the hindsight oracle)."""
+    from crop_sim_ros.task import core
+    scenario = scenario_of(scenario)
+    table = core.scenario_table(scenario)
+    params = scenario.field_parameters()
+    index = {name: i for i, name in enumerate(core.WEATHER_NAMES)}
+    contexts = []
+    for k in range(len(table)):
+        n = int(table.n_days[k])
+        w = table.weather[k, :n]
+        contexts.append(SeasonContext(
+            name=f"{scenario.name}[{k}]", params=params, tmax_degc=w[:, index["tmax_degc"]],
+            tmin_degc=w[:, index["tmin_degc"]], srad_mj_m2=w[:, index["srad_mj_m2"]], rain_mm=w[:, index["rain_mm"]],
+            et0_mm=table.et0_mm[k, :n], water_cost_per_mm=float(scenario.irrigation_cost_per_mm),
+            extra={"source": table.sources[k], "potential_yield_t_ha": float(table.potential_yield_t_ha[k]),
+                   "sowing_date": str(table.sowing_dates[k])}))
+    return contexts
+
+
+def run_episodes(policy, scenario, seasons, seed: int | None = 0, record: bool = False,
+                 contexts: list[SeasonContext] | None = None) -> Episodes:
+    """One episode per entry of ``seasons`` (indices into the scenario's seasons), all fields at once, with
+    the environment's noise generator seeded by ``seed``. ``policy.act`` receives the (N, 20) batch.
+
+    Policies with ``begin_season`` get the list of the fields' :class:`SeasonContext` (``contexts`` of
+    the scenario, computed if not given) before the first step.
+    """
+    from gymnasium.vector import AutoresetMode
+    from crop_sim_ros.task import IrrigationVectorEnv
+    scenario = scenario_of(scenario)
+    seasons = np.asarray(seasons, dtype=np.int64)
+    n = len(seasons)
+    env = IrrigationVectorEnv(n, scenario, autoreset_mode=AutoresetMode.SAME_STEP)
+    if hasattr(policy, "reset"):
+        policy.reset(seed)
+    if hasattr(policy, "begin_season"):
+        all_contexts = contexts if contexts is not None else season_contexts(scenario)
+        policy.begin_season([all_contexts[k] for k in seasons])
+    obs, info = env.reset(seed=seed, options={"season": seasons})
+    potential = np.asarray(info["potential_yield_t_ha"], dtype=float).copy()
+    total = np.zeros(n)
+    water = np.zeros(n)
+    rain = np.zeros(n)
+    yield_t_ha = np.zeros(n)
+    days = np.zeros(n, dtype=np.int64)
+    matured = np.zeros(n, dtype=bool)
+    alive = np.ones(n, dtype=bool)
+    daily = {"biomass_t_ha": [], "paw_mm": [], "rain_mm": [], "irrigation_mm": []} if record else None
+    state_biomass, state_paw = info["true_biomass_t_ha"].copy(), info["true_paw_mm"].copy()
+    while alive.any():
+        action = np.clip(np.asarray(policy.act(obs), dtype=float).reshape(n), 0.0, scenario.max_irrigation_mm)
+        obs, rewards, terminated, truncated, info = env.step(action)
+        applied = np.where(alive, info["irrigation_applied_mm"], 0.0)
+        if record:
+            daily["biomass_t_ha"].append(np.where(alive, state_biomass, np.nan))
+            daily["paw_mm"].append(np.where(alive, state_paw, np.nan))
+            daily["rain_mm"].append(np.where(alive, info["rain_mm"], np.nan))
+            daily["irrigation_mm"].append(np.where(alive, applied, np.nan))
+        total += np.where(alive, rewards, 0.0)
+        water += applied
+        rain += np.where(alive, info["rain_mm"], 0.0)
+        days += alive
+        ended = alive & (terminated | truncated)
+        if ended.any():
+            final = info["final_info"]
+            yield_t_ha[ended] = np.where(terminated[ended], final["yield_t_ha"][ended], 0.0)
+            matured[ended] = terminated[ended]
+        alive &= ~ended
+        state_biomass, state_paw = info["true_biomass_t_ha"].copy(), info["true_paw_mm"].copy()
+    if record:
+        daily = {k: np.array(v) for k, v in daily.items()}
+    return Episodes(seasons, total, yield_t_ha, water, rain, potential, days, matured, daily)

@@ -1,0 +1,148 @@
+"""PPO policies of Stable-Baselines3: the fixed observation features and action mapping the network sees
+(shared by training and the policy file loader), and :class:`SB3Policy`, which loads a policy file.
+
+Observation features (:func:`features`, fixed, no running statistics): every observation value scaled to
+about unit range (rain as log1p), plus three derived values the rule-maker would also compute from the
+same observation: the water level at which transpiration meets today's demand, ``ET0/0.096`` (0.096 is
+ARID's daily uptake coefficient) with ET0 estimated by FAO-56 Penman-Monteith from today's exact weather
+(:func:`estimated_et0_mm`), the margin ``PAW + rain today - that level``, and tomorrow's margin from the
+noisy forecast.
+
+Action mapping (:func:`action_to_mm`), ``mode``:
+
+- ``mm``: a in [-1, 1] -> irrigation (a + 1) / 2 * 100 mm;
+- ``target``: a in [-1, 1] -> a water level L in [TARGET_LOW_MM, TARGET_HIGH_MM], and the policy irrigates
+  ``clip(L - PAW - rain today, 0, 100)`` mm: the network chooses, day by day, the level to refill to;
+- ``margin``: as ``target`` with L = ET0 / 0.096 + m, m = MARGIN_CENTER_MM + MARGIN_SPAN_MM * a: the
+  network chooses the safety margin above today's estimated no-stress level. With a = 0 this is a fixed
+  "demand + 4 mm" rule (``DemandMarginPolicy`` in :mod:`crop_agent_ros.policies.rules`); PPO learns a
+  state-dependent correction of it. Most of the skill of the shipped policy comes from this design (the
+  ET0 estimate and the no-stress level are agronomy, not learning): evaluate ``margin4`` beside ``ppo``.
+
+Either way the policy is a function of the observation alone and returns mm in [0, 100].
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .base import (ACTION_HIGH_MM, DAYS_SINCE_SOWING, FORECAST_RAIN_MM, PAW_MM, TODAY_RAIN_MM, BasePolicy)
+
+UPTAKE = 0.096  # mm d-1 per mm of PAW: ARID's water uptake coefficient (crop_sim_ros.model.simple)
+TARGET_LOW_MM = 20.0
+TARGET_HIGH_MM = 140.0
+# margin mode: m = MARGIN_CENTER_MM + MARGIN_SPAN_MM * a. The centre is the best fixed margin on generated
+# training seasons (benton-generated 0..199, noise seed 0: margins 3-6 mm within 0.0002 t/ha of each other;
+# see the tuning notes in the module docstring); a = 0 (an untrained network) is that fixed-margin rule.
+MARGIN_CENTER_MM = 4.0
+MARGIN_SPAN_MM = 15.0
+ACTION_MODES = ("mm", "target", "margin")
+FEATURE_VERSION = 2
+# Benton County, WA (the scenarios' site: AgWeatherNet Benton E. and Paterson), and the day of year of an
+# early-April sowing: used only to estimate ET0 from the observation.
+SITE_LATITUDE_DEG = 46.2
+SITE_ELEVATION_M = 200.0
+SOWING_DAY_OF_YEAR = 95
+N_FEATURES = 23
+
+HERE = Path(__file__).resolve().parent
+SHIPPED_PPO = HERE / "ppo_benton.zip"
+
+# fixed centre and scale of each observation value (see the observation table of IRRIGATION_TASK.md)
+_CENTER = np.array([8, 1200, 90, 22, 8, 15, 0, 18, 369, 10, 2.5, 22, 8, 15, 0, 18, 369, 10, 2.5, 80], float)
+_SCALE = np.array([8, 1200, 90, 12, 8, 9, 1, 9, 30, 5, 2, 12, 8, 9, 1, 9, 30, 5, 2, 40], float)
+
+
+def estimated_et0_mm(obs: np.ndarray, tomorrow: bool = False) -> np.ndarray:
+    """FAO-56 Penman-Monteith ET0 (mm/day) from the observation's weather (today's exact values, or
+    tomorrow's noisy forecast), at the Benton County site (SITE_LATITUDE_DEG, SITE_ELEVATION_M) with the
+    day of year estimated as SOWING_DAY_OF_YEAR + days since sowing (the observation has no date)."""
+    from crop_sim_ros.model.et0 import penman_monteith
+    c = 11 if tomorrow else 3
+    tmax, tmin = obs[:, c], np.minimum(obs[:, c + 1], obs[:, c])
+    doy = np.clip(SOWING_DAY_OF_YEAR + obs[:, DAYS_SINCE_SOWING] + (1 if tomorrow else 0), 1, 365)
+    return penman_monteith(tmax, tmin, np.maximum(obs[:, c + 4], 0.01), np.maximum(obs[:, c + 6], 0.01),
+                           np.maximum(obs[:, c + 7], 0.0), doy, SITE_LATITUDE_DEG, SITE_ELEVATION_M)
+
+
+def _demand_level_mm(obs: np.ndarray, tomorrow: bool = False) -> np.ndarray:
+    """ET0 / 0.096: the PAW (after the day's water) at which transpiration meets the day's demand."""
+    return estimated_et0_mm(obs, tomorrow) / UPTAKE
+
+
+# the "compact" feature set: biomass, TT, days, today's rain, forecast rain, PAW, and the three derived values
+COMPACT = (0, 1, 2, 6, 14, 19, 20, 21, 22)
+FEATURE_SETS = {"full": N_FEATURES, "compact": len(COMPACT)}
+
+
+def features(obs: np.ndarray, feature_set: str = "full") -> np.ndarray:
+    """(N, 20) observations -> (N, 23) float32 features (see the module docstring); ``feature_set="compact"``
+    keeps only the 9 columns of COMPACT (the network then cannot react to the noisy forecast details)."""
+    full = _full_features(obs)
+    if feature_set == "full":
+        return full
+    if feature_set == "compact":
+        return np.ascontiguousarray(full[:, COMPACT])
+    raise ValueError(f"unknown feature set {feature_set!r}; known: {', '.join(FEATURE_SETS)}")
+
+
+def _full_features(obs: np.ndarray) -> np.ndarray:
+    obs = np.atleast_2d(np.asarray(obs, dtype=float))
+    x = (obs - _CENTER) / _SCALE
+    x[:, TODAY_RAIN_MM] = np.log1p(np.maximum(obs[:, TODAY_RAIN_MM], 0.0)) - 1.0
+    x[:, FORECAST_RAIN_MM] = np.log1p(np.maximum(obs[:, FORECAST_RAIN_MM], 0.0)) - 1.0
+    level_today = _demand_level_mm(obs)
+    level_tomorrow = _demand_level_mm(obs, tomorrow=True)
+    margin = obs[:, PAW_MM] + obs[:, TODAY_RAIN_MM] - level_today
+    derived = np.stack([(level_today - 60.0) / 30.0, margin / 30.0,
+                        (obs[:, PAW_MM] + obs[:, FORECAST_RAIN_MM] - level_tomorrow) / 30.0], axis=1)
+    return np.clip(np.concatenate([x, derived], axis=1), -10.0, 10.0).astype(np.float32)
+
+
+def action_to_mm(action: np.ndarray, obs: np.ndarray, mode: str, margin_center_mm: float = MARGIN_CENTER_MM,
+                 margin_span_mm: float = MARGIN_SPAN_MM) -> np.ndarray:
+    """Network action(s) in [-1, 1] -> irrigation mm in [0, 100] (see the module docstring)."""
+    a = np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0)
+    obs = np.atleast_2d(np.asarray(obs, dtype=float))
+    if mode == "mm":
+        return (a + 1.0) * 0.5 * ACTION_HIGH_MM
+    if mode == "target":
+        level = TARGET_LOW_MM + (a + 1.0) * 0.5 * (TARGET_HIGH_MM - TARGET_LOW_MM)
+        return np.clip(level - obs[:, PAW_MM] - obs[:, TODAY_RAIN_MM], 0.0, ACTION_HIGH_MM)
+    if mode == "margin":
+        margin = margin_center_mm + margin_span_mm * a
+        level = _demand_level_mm(obs) + margin
+        return np.clip(level - obs[:, PAW_MM] - obs[:, TODAY_RAIN_MM], 0.0, ACTION_HIGH_MM)
+    raise ValueError(f"unknown action mode {mode!r}; known: {', '.join(ACTION_MODES)}")
+
+
+def config_path_for(model_path: Path) -> Path:
+    return Path(model_path).with_suffix(".json")
+
+
+class SB3Policy(BasePolicy):
+    """A PPO policy file (``.zip``) with its ``.json`` config beside it; deterministic actions."""
+
+    def __init__(self, path: str | Path = SHIPPED_PPO, name: str = "ppo", device: str = "cpu"):
+        from stable_baselines3 import PPO
+        self.path = Path(path)
+        if not self.path.exists():
+            raise FileNotFoundError(f"policy file {self.path} does not exist (train one with `crop-sim train`)")
+        cfg_file = config_path_for(self.path)
+        self.config = json.loads(cfg_file.read_text()) if cfg_file.exists() else {}
+        self.action_mode = self.config.get("action_mode", "mm")
+        self.feature_set = self.config.get("feature_set", "full")
+        self.mapping = {k: float(v) for k, v in self.config.get("action_mapping", {}).items()}
+        self.model = PPO.load(str(self.path), device=device)
+        self.name = name
+
+    def _act_batch(self, obs):
+        action, _ = self.model.predict(features(obs, self.feature_set), deterministic=True)
+        return action_to_mm(action, obs, self.action_mode, **self.mapping)
+
+    def describe(self):
+        return {"name": self.name, "path": str(self.path), "action_mode": self.action_mode,
+                "feature_set": self.feature_set}

@@ -1,0 +1,114 @@
+"""Grow a season over ROS 2 with one command: start the simulator node and an agent node as two processes,
+let the agent drive the season(s), print the summary, stop both.
+
+    python -m crop_agent_ros.run_farm [--policy ppo|refill|best-constant|constant|zero] [--seasons 1] [--scenario NAME]
+                                      [--seed 0] [--log season.csv]
+
+Defaults: the shipped PPO policy (``crop_agent_ros/policies/ppo_benton.zip``) on the embedded default
+scenario ``benton-generated`` (no data file needed), seed 0. Both nodes run on a private ROS_DOMAIN_ID
+with discovery kept on this machine, so nothing else on the network sees them (``--domain-id`` to choose).
+On a ROS 2 machine the same job is ``ros2 launch crop_sim_ros farm.launch.py``.
+
+Exit status: 0 when every season was grown, 1 when a node failed (its output is printed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from .ros_process import NodeProcess, isolated_ros_env, pick_domain_id
+
+SUMMARY_PREFIX = "season summary: "
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--policy", default="ppo", choices=("ppo", "refill", "best-constant", "constant", "zero"),
+                        help="the agent's policy (default: the shipped PPO policy)")
+    parser.add_argument("--policy-file", default="", help="policy ppo: a Stable-Baselines3 PPO .zip "
+                        "(default: the shipped crop_agent_ros/policies/ppo_benton.zip)")
+    parser.add_argument("--constant-mm", type=float, default=10.0, help="policy constant: mm per day (default 10)")
+    parser.add_argument("--seasons", type=int, default=1, help="seasons to grow (default 1)")
+    parser.add_argument("--scenario", default="benton-generated", help="scenario name or YAML path "
+                        "(default benton-generated, the embedded default)")
+    parser.add_argument("--data-dir", default="", help="directory of the scenario's weather files")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the first season (default 0)")
+    parser.add_argument("--log", default="", help="season log CSV (default: a file in a temporary directory, "
+                        "printed at the end)")
+    parser.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: derived from the pid)")
+    parser.add_argument("--timeout", type=float, default=600.0, help="seconds before giving up (default 600)")
+    parser.add_argument("--json", action="store_true", help="print the summaries as JSON lines only")
+
+
+def run(args) -> int:
+    env = isolated_ros_env(args.domain_id if args.domain_id is not None else pick_domain_id(salt=53))
+    workdir = Path(tempfile.mkdtemp(prefix="crop_farm_"))
+    log = Path(args.log).expanduser().resolve() if args.log else workdir / "season_log.csv"
+    sim_args = ["-p", f"scenario:={args.scenario}", "-p", f"seed:={args.seed}", "-p", f"log_path:={log}"]
+    if args.data_dir:
+        sim_args += ["-p", f"data_dir:={args.data_dir}"]
+    agent_args = ["-p", f"policy:={args.policy}", "-p", "drive:=true", "-p", f"seasons:={args.seasons}",
+                  "-p", f"constant_mm:={args.constant_mm}", "-p", "seed:=-2"]
+    if args.policy_file:
+        agent_args += ["-p", f"policy_file:={Path(args.policy_file).expanduser().resolve()}"]
+    started = time.monotonic()
+    sim = NodeProcess("crop_sim_ros.sim_node", ros_args=sim_args, env=env, name="sim_node",
+                      log_path=workdir / "sim_node.out")
+    agent = NodeProcess("crop_agent_ros.agent_node", ros_args=agent_args, env=env, name="agent_node",
+                        log_path=workdir / "agent_node.out")
+    code = 0
+    try:
+        while agent.poll() is None:
+            if sim.poll() is not None:
+                print(f"sim_node exited with status {sim.poll()}:\n{sim.output()}", file=sys.stderr)
+                code = 1
+                break
+            if time.monotonic() - started > args.timeout:
+                print(f"timed out after {args.timeout:.0f} s", file=sys.stderr)
+                code = 1
+                break
+            time.sleep(0.05)
+        if code == 0 and agent.poll() != 0:
+            print(f"agent_node exited with status {agent.poll()}:\n{agent.output()}", file=sys.stderr)
+            code = 1
+    except KeyboardInterrupt:
+        code = 130
+    finally:
+        agent.stop()
+        sim_status = sim.stop()
+    summaries = [json.loads(line[len(SUMMARY_PREFIX):]) for line in agent.output().splitlines()
+                 if line.startswith(SUMMARY_PREFIX)]
+    if args.json:
+        for summary in summaries:
+            print(json.dumps(summary))
+    else:
+        for s in summaries:
+            print(f"season {s['episode'] - 1}: {s['weather']}, policy {s['policy']}: yield {s['yield_t_ha']:.2f} t/ha, "
+                  f"irrigation {s['irrigation_mm']:.0f} mm, return {s['return']:.3f} "
+                  f"(normalized {s['normalized_return']:.3f}), {s['days']} days"
+                  f"{'' if s['matured'] else ' (weather ran out before maturity)'}")
+        if summaries:
+            print(f"grown over ROS 2 (sim_node + agent_node, ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}) in "
+                  f"{time.monotonic() - started:.1f} s; season log {log}; node output in {workdir}")
+        else:
+            print(f"no season grown; node output in {workdir}", file=sys.stderr)
+    if code == 0 and len(summaries) != args.seasons:
+        print(f"expected {args.seasons} season summaries, got {len(summaries)}", file=sys.stderr)
+        code = 1
+    if code == 0 and sim_status not in (0, None):
+        print(f"sim_node stopped with status {sim_status}", file=sys.stderr)
+    return code
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m crop_agent_ros.run_farm", description=__doc__.split("\n\n")[0])
+    add_arguments(parser)
+    return run(parser.parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

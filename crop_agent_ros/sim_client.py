@@ -1,0 +1,294 @@
+"""A client of the simulator node: reset (a service call), and one simulated day, in one of two ways.
+
+Shared by the Gymnasium bridge (:mod:`crop_agent_ros.bridge`) and the agent node's drive mode. It runs on
+the caller's node and executor (one thread; no background spinning), with ``call_async`` and its own
+``spin_once`` loop.
+
+``via="topic"`` (the default; one round trip per day):
+    publish ``[day, mm, episode]`` on ``<sim>/irrigation_step``; the simulator validates the command, applies
+    it and steps at once; the client waits for ``<sim>/step_result`` and ``<sim>/observation`` of the new day
+    (float32 observation and float64 reward, exactly). A refusal arrives on ``<sim>/irrigation_status``.
+    The day is named in the command, so a repeated message can never step twice (it would be for a past day).
+
+``via="service"`` (the general protocol any client can use; about two round trips per day):
+    1. publish ``[day, mm, episode]`` on ``<sim>/irrigation``;
+    2. wait for ``<sim>/irrigation_status`` to report it accepted (the command topic and the step service are
+       separate channels: without this wait the step could overtake the command);
+    3. call ``<sim>/step``: its response carries the summary and the new day's observation (float32 values
+       widened to float64 in JSON, exactly). With ``verify_topics`` the client also waits for the observation
+       topic and checks it equals the response's observation bit for bit.
+
+A command published before the two endpoints have matched is lost; :meth:`connect` waits for the matching
+and the client republishes after ``ack_timeout`` (harmless: the latest command of a day counts, a stepping
+command for a day already stepped is refused).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections import deque
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters
+from std_msgs.msg import Float32MultiArray
+from std_msgs.msg import Float64MultiArray
+from std_srvs.srv import Trigger
+
+from crop_sim_ros import ros_interface as ri
+
+from .ros_client import ServiceTimeout, call, spin_until, wait_for_service
+
+
+UNCHANGED = object()  # reset(): leave this simulator parameter as it is
+
+
+class SimError(RuntimeError):
+    """The simulator refused a request (the message says why)."""
+
+
+class SimClient:
+    """Talks to the simulator node ``sim_node`` (its fully qualified name, e.g. ``/crop_sim``)."""
+
+    def __init__(self, node, executor, sim_node: str = "/" + ri.NODE_NAME, timeout: float = 10.0,
+                 ack_timeout: float = 0.5, verify_topics: bool = False, via: str = "topic"):
+        if via not in ("topic", "service"):
+            raise ValueError(f"via: {via!r} is neither 'topic' nor 'service'")
+        self.via = via
+        self.node, self.executor = node, executor
+        self.sim = sim_node.rstrip("/") or "/" + ri.NODE_NAME
+        if not self.sim.startswith("/"):
+            self.sim = "/" + self.sim
+        self.timeout, self.ack_timeout, self.verify_topics = timeout, ack_timeout, verify_topics
+        self._step = node.create_client(Trigger, f"{self.sim}/{ri.STEP_SERVICE}")
+        self._reset = node.create_client(Trigger, f"{self.sim}/{ri.RESET_SERVICE}")
+        self._set_parameters = node.create_client(SetParameters, f"{self.sim}/set_parameters")
+        self._get_parameters = node.create_client(GetParameters, f"{self.sim}/get_parameters")
+        self._command = node.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_TOPIC}", ri.COMMAND_QOS)
+        self._message = ri.irrigation_command(0, 0.0, 0)  # reused: publish() serialises at once
+        self._acks: deque[dict] = deque(maxlen=1000)
+        self._status = node.create_subscription(DiagnosticStatus, f"{self.sim}/{ri.IRRIGATION_STATUS_TOPIC}",
+                                                lambda m: self._acks.append(ri.status_values(m)), ri.COMMAND_QOS)
+        self._topic_obs: deque[np.ndarray] = deque(maxlen=100)
+        self._results: deque[list] = deque(maxlen=100)
+        self._obs_sub = self._result_sub = None
+        if verify_topics or via == "topic":
+            self._obs_sub = node.create_subscription(
+                Float32MultiArray, f"{self.sim}/{ri.OBSERVATION_TOPIC}",
+                lambda m: self._topic_obs.append(ri.observation_from_message(m)), ri.READER_QOS)
+        if via == "topic":
+            self._step_command = node.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_STEP_TOPIC}",
+                                                       ri.COMMAND_QOS)
+            self._result_sub = node.create_subscription(
+                Float64MultiArray, f"{self.sim}/{ri.STEP_RESULT_TOPIC}",
+                lambda m: self._results.append(list(m.data)), ri.READER_QOS)
+        self._parameters: dict = {}
+        self.episode = 0
+        self.day = 0
+        self.ended = True
+        self.max_irrigation_mm = math.inf
+        self.last_response: dict = {}
+        self.retries = 0
+
+    # --- connection --------------------------------------------------------------------------------------
+
+    def connect(self, timeout: float = 30.0) -> dict:
+        """Wait until the simulator's services exist and the command/status topics have matched, then read
+        its ``mode`` and ``scenario`` parameters (an idempotent round trip: by the time it returns, the
+        simulator has discovered this node's endpoints, all created before). Returns those parameters."""
+        deadline = time.monotonic() + timeout
+        for client in (self._reset, self._step, self._set_parameters, self._get_parameters):
+            wait_for_service(self.executor, client, max(0.1, deadline - time.monotonic()))
+        spin_until(self.executor, lambda: self._command.get_subscription_count() >= 1
+                   and self._status.get_publisher_count() >= 1
+                   and (self._obs_sub is None or self._obs_sub.get_publisher_count() >= 1)
+                   and (self._result_sub is None or (self._result_sub.get_publisher_count() >= 1
+                                                     and self._step_command.get_subscription_count() >= 1)),
+                   max(0.1, deadline - time.monotonic()), what=f"the topics of {self.sim}", step=0.02)
+        names = ["mode", "scenario"]
+        response = call(self.executor, self._get_parameters, GetParameters.Request(names=names), self.timeout)
+        values = {name: value.string_value for name, value in zip(names, response.values)}
+        if values.get("mode") not in (None, "lockstep"):
+            raise SimError(f"{self.sim} is in mode {values['mode']!r}: a client steps it only in lockstep mode")
+        return values
+
+    def close(self) -> None:
+        for client in (self._step, self._reset, self._set_parameters, self._get_parameters):
+            self.node.destroy_client(client)
+        self.node.destroy_publisher(self._command)
+        self.node.destroy_subscription(self._status)
+        for sub in (self._obs_sub, self._result_sub):
+            if sub is not None:
+                self.node.destroy_subscription(sub)
+        if self._result_sub is not None:
+            self.node.destroy_publisher(self._step_command)
+
+    # --- parameters --------------------------------------------------------------------------------------
+
+    def set_parameters(self, **values) -> None:
+        """Set simulator parameters (skipping those already set to the same value by this client)."""
+        changed = {k: v for k, v in values.items() if self._parameters.get(k, object()) != v
+                   or type(self._parameters.get(k)) is not type(v)}
+        if not changed:
+            return
+        request = SetParameters.Request()
+        for name, value in changed.items():
+            request.parameters.append(Parameter(name=name, value=_parameter_value(value)))
+        response = call(self.executor, self._set_parameters, request, self.timeout)
+        for (name, value), result in zip(changed.items(), response.results):
+            if not result.successful:
+                raise SimError(f"{self.sim}: parameter {name}={value!r} refused: {result.reason}")
+            self._parameters[name] = value
+
+    # --- season ------------------------------------------------------------------------------------------
+
+    def reset(self, seed=None, weather_season=None, **parameters):
+        """New season; ``seed`` None continues the simulator's random stream (like Gymnasium), UNCHANGED
+        leaves the simulator's seed parameter as it is; likewise ``weather_season`` (None: drawn).
+        Returns (observation float32 (20,), info dict: the simulator's reset summary)."""
+        if seed is not UNCHANGED:
+            parameters["seed"] = -1 if seed is None else int(seed)
+        if weather_season is not UNCHANGED:
+            parameters["weather_season"] = -1 if weather_season is None else int(weather_season)
+        self.set_parameters(**parameters)
+        self._topic_obs.clear()
+        summary = self._trigger(self._reset)
+        self.episode, self.day, self.ended = summary["episode"], summary["day"], False
+        self.max_irrigation_mm = float(summary.get("max_irrigation_mm", math.inf))
+        return self._observation(summary), summary
+
+    def step(self, mm: float):
+        """Irrigate ``mm`` today and advance one day.
+        Returns (observation, reward, terminated, truncated, summary)."""
+        if self.ended:
+            raise SimError("the season has ended; call reset()")
+        mm = float(mm)
+        if self.via == "topic":
+            return self._step_by_topic(mm)
+        self.command(mm)
+        self._topic_obs.clear()
+        summary = self._trigger(self._step)
+        if summary["episode"] != self.episode or summary["day"] != self.day + 1:
+            raise SimError(f"{self.sim}: expected episode {self.episode} day {self.day + 1}, got episode "
+                           f"{summary['episode']} day {summary['day']} (another client is stepping this simulator)")
+        if summary["irrigation_mm"] != mm:
+            raise SimError(f"{self.sim}: day {self.day} was irrigated {summary['irrigation_mm']} mm, not {mm} mm")
+        self.day = summary["day"]
+        terminated, truncated = bool(summary["terminated"]), bool(summary["truncated"])
+        self.ended = terminated or truncated
+        return self._observation(summary), float(summary["reward"]), terminated, truncated, summary
+
+    def _step_by_topic(self, mm: float):
+        day, episode = self.day, self.episode
+        message = self._message
+        message.data = [float(day), mm, float(episode)]
+        self._acks.clear()
+        self._results.clear()
+        self._topic_obs.clear()
+        found = {}
+
+        def arrived() -> bool:
+            if "result" not in found:
+                for r in self._results:
+                    if r[0] == episode and r[1] == day + 1:
+                        found["result"] = r
+                        break
+            if "obs" not in found:
+                for o in self._topic_obs:
+                    if o[ri.OBS_DAY] == day + 1:
+                        found["obs"] = o
+                        break
+            if "result" in found and "obs" in found:
+                return True
+            for ack in self._acks:  # refused (another client stepped, the season ended, a bad amount ...)
+                if not ack["accepted"] and ack["day"] == day and ack["irrigation_mm"] == mm and "result" not in found:
+                    raise SimError(f"{self.sim} refused {mm} mm and a step for day {day}: {ack['message']}")
+            return False
+
+        deadline = time.monotonic() + self.timeout
+        while True:
+            self._step_command.publish(message)
+            try:
+                spin_until(self.executor, arrived, min(self.ack_timeout, max(0.01, deadline - time.monotonic())),
+                           what="the step result")
+                break
+            except ServiceTimeout:
+                if time.monotonic() > deadline:
+                    raise ServiceTimeout(f"{self.sim} did not step day {day} within {self.timeout:.1f} s") from None
+                self.retries += 1
+        r, obs = found["result"], found["obs"]
+        if r[2] != mm:
+            raise SimError(f"{self.sim}: day {day} was irrigated {r[2]} mm, not {mm} mm")
+        terminated, truncated = r[4] == 1.0, r[5] == 1.0
+        summary = {"episode": episode, "day": day + 1, "irrigation_mm": r[2], "reward": r[3], "return": r[7],
+                   "terminated": terminated, "truncated": truncated, "yield_t_ha": r[6],
+                   "command_sequence": int(r[8])}
+        self.last_response = summary
+        self.day = day + 1
+        self.ended = terminated or truncated
+        return obs, float(r[3]), terminated, truncated, summary
+
+    def command(self, mm: float) -> dict:
+        """Publish today's command and wait until the simulator has accepted it; returns its status."""
+        message = self._message
+        message.data = [float(self.day), mm, float(self.episode)]
+        self._acks.clear()
+        deadline = time.monotonic() + self.timeout
+        while True:
+            self._command.publish(message)
+            try:
+                spin_until(self.executor, lambda: self._find_ack(mm) is not None,
+                           min(self.ack_timeout, max(0.01, deadline - time.monotonic())), what="an acknowledgement")
+            except ServiceTimeout:
+                if time.monotonic() > deadline:
+                    raise ServiceTimeout(f"{self.sim} did not acknowledge the irrigation command for day "
+                                         f"{self.day} within {self.timeout:.1f} s") from None
+                self.retries += 1
+                continue
+            ack = self._find_ack(mm)
+            if not ack["accepted"]:
+                raise SimError(f"{self.sim} rejected {mm} mm for day {self.day}: {ack['message']}")
+            return ack
+
+    def _find_ack(self, mm: float) -> dict | None:
+        for ack in self._acks:
+            if ack["day"] == self.day and ack["irrigation_mm"] == mm:
+                return ack
+        return None
+
+    def _trigger(self, client) -> dict:
+        response = call(self.executor, client, Trigger.Request(), self.timeout)
+        try:
+            summary = json.loads(response.message)
+        except ValueError:
+            summary = {"error": response.message}
+        self.last_response = summary
+        if not response.success:
+            raise SimError(f"{client.srv_name}: {summary.get('error', response.message)}")
+        return summary
+
+    def _observation(self, summary: dict) -> np.ndarray:
+        obs = np.asarray(summary["observation"], dtype=np.float32)
+        if self.verify_topics:
+            day = summary["day"]
+            spin_until(self.executor, lambda: any(o[ri.OBS_DAY] == day for o in self._topic_obs), self.timeout,
+                       what=f"the observation topic of day {day}")
+            topic = next(o for o in self._topic_obs if o[ri.OBS_DAY] == day)
+            if topic.tobytes() != obs.tobytes():
+                raise SimError(f"day {day}: the observation topic differs from the step response: {topic} != {obs}")
+        return obs
+
+
+def _parameter_value(value) -> ParameterValue:
+    if isinstance(value, bool):
+        return ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=value)
+    if isinstance(value, int):
+        return ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=value)
+    if isinstance(value, float):
+        return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+    if isinstance(value, str):
+        return ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
+    raise TypeError(f"unsupported parameter value {value!r}")

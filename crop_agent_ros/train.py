@@ -1,0 +1,328 @@
+"""``crop-sim train``: train a PPO irrigation policy (Stable-Baselines3) on generated seasons.
+
+Training runs on the batched task environment (``crop_sim_ros.task.sb3_vec``) of a generated-weather
+scenario (default ``benton-generated``; the real held-out seasons are refused). The network sees the fixed
+features of :mod:`crop_agent_ros.policies.sb3` and acts through its action mapping (default ``margin``: the
+safety margin above the day's estimated no-stress water level); the training reward is the task's reward
+with potential-based shaping by the crop's yield so far (``--reward-shaping``; evaluation always uses the
+true reward). Every ``--eval-freq`` steps the deterministic policy runs on (a) fresh generated validation
+seasons (a generator seed the training pool does not use; ``best_validation_model.zip`` keeps the best) and
+(b) the held-out real seasons, whose regret against the hindsight oracle is only reported, never used to
+choose anything. The shaping reads each field's true biomass from the batched environment's state (the
+SB3 adapter does not pass it in ``infos``). Writes to ``--out`` (default ``runs/<name>``): ``model.zip`` with ``model.json`` (the
+policy's feature and action settings, read by the loader), ``learning_curve.csv`` and ``.png``, and
+``config.json`` (seed, scenario, hyper-parameters, package versions, wall time). ``--ship`` also copies the
+policy to ``crop_agent_ros/policies/ppo_benton.zip`` (+ ``.json``).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import platform
+import shutil
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+HELD_OUT = ("heldout", "benton-2000", "paterson-1992", "paterson-1993", "paterson-1994", "paterson-1995")
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--name", default="ppo", help="run name (output in runs/<name> unless --out)")
+    parser.add_argument("--out", type=Path, default=None, help="output directory (default runs/<name>)")
+    parser.add_argument("--scenario", default="benton-generated", help="training scenario (generated weather)")
+    parser.add_argument("--eval-scenario", default="heldout", help="held-out seasons for the learning curve")
+    parser.add_argument("--timesteps", type=int, default=3_000_000, help="environment steps (field-days)")
+    parser.add_argument("--n-envs", type=int, default=64, help="fields stepped together")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--eval-freq", type=int, default=250_000, help="steps between evaluations")
+    parser.add_argument("--eval-seeds", type=int, default=4, help="noise seeds per evaluation")
+    parser.add_argument("--validation-seasons", type=int, default=64, help="fresh generated validation seasons")
+    parser.add_argument("--action-mode", default="margin", choices=("mm", "target", "margin"))
+    parser.add_argument("--feature-set", default="full", choices=("full", "compact"))
+    parser.add_argument("--margin-center", type=float, default=4.0, help="margin mode: mm above ET0/0.096 at a=0")
+    parser.add_argument("--margin-span", type=float, default=15.0, help="margin mode: mm per unit of action")
+    parser.add_argument("--learning-rate", type=float, default=1e-4)
+    parser.add_argument("--final-learning-rate", type=float, default=1e-5, help="linear decay to this value")
+    parser.add_argument("--n-steps", type=int, default=256, help="rollout length per field")
+    parser.add_argument("--batch-size", type=int, default=2048)
+    parser.add_argument("--n-epochs", type=int, default=10)
+    parser.add_argument("--gamma", type=float, default=1.0,
+                        help="1: the season is finite and the yield comes at its end")
+    parser.add_argument("--gae-lambda", type=float, default=0.95)
+    parser.add_argument("--clip-range", type=float, default=0.2)
+    parser.add_argument("--ent-coef", type=float, default=0.0)
+    parser.add_argument("--net-arch", default="32,32", help="hidden layer sizes, e.g. 64,64")
+    parser.add_argument("--log-std-init", type=float, default=-2.5)
+    parser.add_argument("--reward-shaping", default="biomass", choices=("none", "biomass"),
+                        help="potential-based shaping of the training reward (evaluation: true reward)")
+    parser.add_argument("--ship", action="store_true", help="copy the policy to crop_agent_ros/policies/ppo_benton")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+class PolicyOfModel:
+    """A :class:`~crop_agent_ros.policies.base.Policy` view of a PPO model being trained."""
+
+    def __init__(self, model, action_mode: str, feature_set: str = "full", mapping: dict | None = None,
+                 name: str = "ppo"):
+        self.model, self.action_mode, self.feature_set, self.name = model, action_mode, feature_set, name
+        self.mapping = mapping or {}
+
+    def reset(self, seed=None):
+        pass
+
+    def act(self, obs):
+        from .policies.sb3 import action_to_mm, features
+        action, _ = self.model.predict(features(obs, self.feature_set), deterministic=True)
+        return action_to_mm(action, obs, self.action_mode, **self.mapping)
+
+
+def training_vec_env(scenario, n_envs: int, seed: int):
+    """The task's SB3 VecEnv, also passing each field's true biomass (t/ha, after the step; for a field that
+    ended, its new season's) in ``infos[i]["true_biomass_t_ha"]`` for the reward shaping."""
+    from crop_sim_ros.task.sb3_vec import IrrigationSB3VecEnv
+
+    class WithBiomass(IrrigationSB3VecEnv):
+        def step_wait(self):
+            obs, rewards, dones, infos = super().step_wait()
+            biomass = self.venv._state.crop.biomass_kg_ha / 1000.0  # the state the next observation shows
+            for i, info in enumerate(infos):
+                info["true_biomass_t_ha"] = float(biomass[i])
+            return obs, rewards, dones, infos
+
+    return WithBiomass(n_envs, scenario, seed=seed)
+
+
+def feature_action_wrapper(venv, action_mode: str, feature_set: str = "full", mapping: dict | None = None,
+                           shaping: str = "none", gamma: float = 1.0,
+                           harvest_index: float = 0.9, initial_biomass_t_ha: float = 0.001):
+    """The SB3 VecEnv the network trains on: features in, [-1, 1] actions out (mapped to mm).
+
+    ``shaping="biomass"``: potential-based shaping (Ng et al. 1999) with the potential
+    Phi(s) = HI * true biomass (t/ha, the yield the crop would give if harvested now) and Phi = 0 at the
+    end of a season: r' = r + gamma Phi(s') - Phi(s). The yield paid at harvest is spread over the days
+    that grew it (a day of water stress costs at once); the optimal policy is unchanged and every
+    evaluation uses the true reward."""
+    from gymnasium import spaces
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+    from .policies.sb3 import FEATURE_SETS, action_to_mm, features
+
+    class FeatureActionWrapper(VecEnvWrapper):
+        def __init__(self):
+            super().__init__(venv, observation_space=spaces.Box(-10.0, 10.0, (FEATURE_SETS[feature_set],), np.float32),
+                             action_space=spaces.Box(-1.0, 1.0, (1,), np.float32))
+            self.raw = None
+
+        def reset(self):
+            self.raw = self.venv.reset()
+            self.phi = np.full(self.num_envs, harvest_index * initial_biomass_t_ha)
+            return features(self.raw, feature_set)
+
+        def step_async(self, actions):
+            self.venv.step_async(action_to_mm(actions, self.raw, action_mode, **(mapping or {})).reshape(-1, 1))
+
+        def step_wait(self):
+            obs, rewards, dones, infos = self.venv.step_wait()
+            if shaping == "biomass":
+                phi = harvest_index * np.array([info["true_biomass_t_ha"] for info in infos])
+                rewards = (rewards + gamma * np.where(dones, 0.0, phi) - self.phi).astype(np.float32)
+                self.phi = phi
+            for i in np.flatnonzero(dones):
+                if "terminal_observation" in infos[i]:
+                    infos[i]["terminal_observation"] = features(infos[i]["terminal_observation"], feature_set)[0]
+            self.raw = obs
+            return features(obs, feature_set), rewards, dones, infos
+
+    return FeatureActionWrapper()
+
+
+def validation_scenario(scenario, n_seasons: int, seed: int):
+    """Fresh generated seasons: the training scenario's generator with a seed its pool does not use."""
+    return replace(scenario, name=f"{scenario.name}-validation",
+                   weather=replace(scenario.weather, seed=scenario.weather.seed + 10_007 + seed, n_seasons=n_seasons))
+
+
+def package_versions() -> dict:
+    import gymnasium
+    import stable_baselines3
+    import torch
+    return {"python": platform.python_version(), "numpy": np.__version__, "gymnasium": gymnasium.__version__,
+            "stable_baselines3": stable_baselines3.__version__, "torch": torch.__version__,
+            "platform": platform.platform()}
+
+
+def plot_curve(rows: list[dict], path: Path, title: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    steps = [r["timesteps"] for r in rows]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    axes[0].plot(steps, [r["heldout_normalized_return"] for r in rows], "o-", label="held-out (real seasons)")
+    axes[0].plot(steps, [r["validation_normalized_return"] for r in rows], "s-", label="validation (generated)")
+    for key, style, label in (("heldout_refill_normalized_return", "--", "refill rule, held-out"),):
+        if rows and key in rows[0]:
+            axes[0].axhline(rows[0][key], ls=style, color="gray", label=label)
+    axes[0].set_xlabel("environment steps (field-days)")
+    axes[0].set_ylabel("mean normalized return")
+    axes[0].legend(fontsize=8)
+    axes[1].semilogy(steps, [max(r["heldout_regret"], 1e-5) for r in rows], "o-", label="held-out regret")
+    if rows and "heldout_refill_regret" in rows[0]:
+        axes[1].axhline(rows[0]["heldout_refill_regret"], ls="--", color="gray", label="refill rule regret")
+    axes[1].set_xlabel("environment steps (field-days)")
+    axes[1].set_ylabel("oracle return - policy return, t/ha")
+    axes[1].legend(fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def train(args) -> dict:
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from .policies.oracle import OraclePolicy
+    from .policies.rollout import run_episodes, scenario_of, season_contexts
+    from .policies.rules import tuned_refill_policy
+    from .policies.sb3 import FEATURE_SETS, FEATURE_VERSION
+
+    torch.set_num_threads(1)
+    scenario = scenario_of(args.scenario)
+    if scenario.name in HELD_OUT or scenario.weather.kind != "generator":
+        raise SystemExit(f"crop-sim train: refusing to train on {scenario.name!r}: training uses generated "
+                         f"seasons only (held-out: {', '.join(HELD_OUT)})")
+    out = Path(args.out) if args.out else Path("runs") / args.name
+    out.mkdir(parents=True, exist_ok=True)
+    net_arch = [int(x) for x in str(args.net_arch).split(",") if x.strip()]
+    hyper = {k: getattr(args, k) for k in ("timesteps", "n_envs", "action_mode", "learning_rate",
+                                           "final_learning_rate", "n_steps", "batch_size", "n_epochs", "gamma",
+                                           "gae_lambda", "clip_range", "ent_coef", "log_std_init", "reward_shaping",
+                                           "feature_set", "margin_center", "margin_span")}
+    hyper["net_arch"] = net_arch
+
+    # evaluation sets: held-out real seasons (reported only) and fresh generated validation seasons
+    heldout = scenario_of(args.eval_scenario)
+    heldout_contexts = season_contexts(heldout)
+    oracle = OraclePolicy()
+    oracle.begin_season(heldout_contexts)
+    heldout_oracle = np.array([r.return_value for r in oracle.results])
+    validation = validation_scenario(scenario, args.validation_seasons, args.seed)
+    eval_seeds = list(range(1000, 1000 + args.eval_seeds))
+    refill = tuned_refill_policy()
+
+    def score(policy, scen, contexts=None):
+        seasons = np.arange(len(contexts) if contexts else args.validation_seasons)
+        runs = [run_episodes(policy, scen, seasons, seed=s, contexts=contexts) for s in eval_seeds]
+        ret = np.mean([r.episode_return for r in runs], axis=0)
+        norm = np.mean([r.normalized_return for r in runs], axis=0)
+        return ret, norm, float(np.mean([r.water_mm for r in runs]))
+
+    r_ref, n_ref, _ = score(refill, heldout, heldout_contexts)
+    v_ref, vn_ref, _ = score(refill, validation)
+    baseline = {"heldout_refill_return": float(r_ref.mean()), "heldout_refill_normalized_return": float(n_ref.mean()),
+                "heldout_refill_regret": float((heldout_oracle - r_ref).mean()),
+                "validation_refill_return": float(v_ref.mean())}
+
+    params = scenario.field_parameters()
+    mapping = {"margin_center_mm": args.margin_center, "margin_span_mm": args.margin_span}
+    venv = feature_action_wrapper(training_vec_env(scenario, args.n_envs, args.seed), args.action_mode,
+                                  args.feature_set, mapping, args.reward_shaping, args.gamma, float(params.harvest_index[0]),
+                                  float(params.initial_biomass_kg_ha[0]) / 1000.0)
+    lr0, lr1 = args.learning_rate, args.final_learning_rate
+    model = PPO("MlpPolicy", venv, learning_rate=lambda progress: lr1 + (lr0 - lr1) * progress,
+                n_steps=args.n_steps, batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma,
+                gae_lambda=args.gae_lambda, clip_range=args.clip_range, ent_coef=args.ent_coef,
+                policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init}, seed=args.seed,
+                device="cpu", verbose=0)
+    rows: list[dict] = []
+    started = time.perf_counter()
+    best = {"validation_return": -np.inf, "timesteps": 0}
+
+    class Curve(BaseCallback):
+        def __init__(self):
+            super().__init__()
+            self.next_eval = 0
+            self.episode_returns: list[float] = []
+
+        def _on_step(self) -> bool:
+            for info in self.locals.get("infos", []):
+                if "episode_return" in info:
+                    self.episode_returns.append(info["episode_return"])
+            if self.num_timesteps >= self.next_eval:
+                self.next_eval += args.eval_freq
+                self.evaluate()
+            return True
+
+        def _on_training_end(self) -> None:
+            if not rows or rows[-1]["timesteps"] != self.num_timesteps:
+                self.evaluate()
+
+        def evaluate(self):
+            policy = PolicyOfModel(self.model, args.action_mode, args.feature_set, mapping)
+            ret, norm, water = score(policy, heldout, heldout_contexts)
+            vret, vnorm, _ = score(policy, validation)
+            recent = self.episode_returns[-200:]
+            row = {"timesteps": int(self.num_timesteps), "wall_s": round(time.perf_counter() - started, 1),
+                   "train_episode_return": float(np.mean(recent)) if recent else float("nan"),
+                   "validation_return": float(vret.mean()), "validation_normalized_return": float(vnorm.mean()),
+                   "validation_minus_refill": float(vret.mean() - v_ref.mean()),
+                   "heldout_return": float(ret.mean()), "heldout_normalized_return": float(norm.mean()),
+                   "heldout_regret": float((heldout_oracle - ret).mean()), "heldout_irrigation_mm": water,
+                   **baseline}
+            rows.append(row)
+            if vret.mean() > best["validation_return"]:
+                best.update(validation_return=float(vret.mean()), timesteps=int(self.num_timesteps))
+                self.model.save(out / "best_validation_model.zip")
+            if self.verbose or True:
+                print(f"[{row['timesteps']:>9}] {row['wall_s']:>7.1f} s  validation - refill "
+                      f"{row['validation_minus_refill']:+.4f}  held-out regret {row['heldout_regret']:.4f} "
+                      f"(refill {baseline['heldout_refill_regret']:.4f})", file=sys.stderr, flush=True)
+
+    callback = Curve()
+    model.learn(total_timesteps=args.timesteps, callback=callback, progress_bar=not args.no_progress)
+    wall = time.perf_counter() - started
+    model.save(out / "model.zip")
+    policy_config = {"action_mode": args.action_mode, "feature_set": args.feature_set, "action_mapping": mapping,
+                     "feature_version": FEATURE_VERSION, "n_features": FEATURE_SETS[args.feature_set],
+                     "trained_on": scenario.name, "seed": args.seed, "timesteps": args.timesteps,
+                     "note": "deterministic actions; features and action mapping: crop_agent_ros.policies.sb3"}
+    (out / "model.json").write_text(json.dumps(policy_config, indent=2) + "\n")
+    if (out / "best_validation_model.zip").exists():
+        (out / "best_validation_model.json").write_text(json.dumps(
+            {**policy_config, "timesteps_at_save": best["timesteps"]}, indent=2) + "\n")
+    with open(out / "learning_curve.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    plot_curve(rows, out / "learning_curve.png", f"PPO on {scenario.name}, seed {args.seed}")
+    command = ("crop-sim train " + " ".join(sys.argv[2:])) if len(sys.argv) > 1 and sys.argv[1] == "train" else None
+    config = {"name": args.name, "command": command,
+              "arguments": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
+                            if not k.startswith("_")},
+              "seed": args.seed, "scenario": scenario.name, "training_weather": {
+                  "kind": scenario.weather.kind, "generator": scenario.weather.generator,
+                  "seed": scenario.weather.seed, "n_seasons": scenario.weather.n_seasons},
+              "validation_weather": {"generator_seed": validation.weather.seed, "n_seasons": args.validation_seasons},
+              "eval_scenario": heldout.name, "eval_noise_seeds": eval_seeds, "hyper_parameters": hyper,
+              "reward": ("evaluation: the task's true reward (C_I * mm daily + yield t/ha at harvest); training: "
+                         + ("the true reward" if args.reward_shaping == "none" else
+                            "plus potential-based shaping gamma*Phi(s') - Phi(s), Phi = HI * true biomass t/ha")),
+              "policy": policy_config, "wall_time_s": round(wall, 1), "torch_threads": torch.get_num_threads(),
+              "best_validation": best, "final": rows[-1], "versions": package_versions()}
+    (out / "config.json").write_text(json.dumps(config, indent=2, default=str) + "\n")
+    if args.ship:
+        from .policies.sb3 import SHIPPED_PPO
+        shutil.copyfile(out / "model.zip", SHIPPED_PPO)
+        (SHIPPED_PPO.with_suffix(".json")).write_text(json.dumps({**policy_config, "training": config}, indent=2,
+                                                                 default=str) + "\n")
+    print(f"trained {args.timesteps} steps in {wall:.0f} s; wrote {out}", file=sys.stderr)
+    return config
+
+
+def run(args) -> int:
+    train(args)
+    return 0

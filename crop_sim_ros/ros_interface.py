@@ -1,0 +1,188 @@
+"""The simulator node's ROS interface in one place: names, QoS, message layouts, encoders and decoders.
+
+Used by the simulator node (which publishes) and by the agent node, the Gymnasium bridge and the tests
+(which read), so that a layout is written once. No science here: it only packs numbers into standard
+messages and back. Only standard interfaces are used (std_msgs, std_srvs, rosgraph_msgs,
+diagnostic_msgs), so stock ``ros2 topic echo`` shows every topic.
+
+Names are relative to the simulator node (``~/...``, default node name ``crop_sim``), so
+``-r __ns:=/field7`` or ``-r __node:=...`` runs several farms side by side. ``/clock`` is global.
+
+==================================== ============================== ==========================================
+Name                                 Type                           Content
+==================================== ============================== ==========================================
+``~/step`` (service)                 std_srvs/Trigger               advance one day; message = JSON summary
+``~/reset`` (service)                std_srvs/Trigger               new season (parameters ``scenario``,
+                                                                    ``seed``, ...); message = JSON summary
+``~/observation``                    std_msgs/Float32MultiArray     the 20-value observation, float32 exactly
+                                                                    as the Gymnasium env gives it
+``~/biomass``                        std_msgs/Float64MultiArray     [day, noisy biomass t/ha]
+``~/paw``                            std_msgs/Float64MultiArray     [day, noisy plant-available water mm]
+``~/weather/today``                  std_msgs/Float64MultiArray     [day, TMAX, TMIN, TAVG, RAIN, SRAD, CO2,
+                                                                    VAP, WIND] of the day
+``~/weather/forecast``               std_msgs/Float64MultiArray     [day + 1, the same 8, noisy forecast]
+``~/step_result``                    std_msgs/Float64MultiArray     [episode, day, irrigation mm, reward,
+                                                                    terminated, truncated, yield t/ha,
+                                                                    return, command sequence]
+``/clock``                           rosgraph_msgs/Clock            farm time: sowing date 00:00 UTC + day
+``~/irrigation`` (subscribed)        std_msgs/Float64MultiArray     command [day, mm] or [day, mm, episode]
+``~/irrigation_step`` (subscribed)   std_msgs/Float64MultiArray     the same command, and step at once
+                                                                    (lockstep): one round trip per day
+``~/irrigation_status``              diagnostic_msgs/DiagnosticStatus  each command's fate: level OK
+                                                                    (accepted) or ERROR (rejected, why)
+==================================== ============================== ==========================================
+
+``day`` is the number of days since sowing of the state the message describes (0 after a reset); the
+observation carries it at index 2. Every Float64MultiArray has one dimension whose label lists the
+values in order with their units, e.g. ``day[d],biomass_t_ha[t/ha]``. Values that come from the observation
+(biomass, PAW, today's weather, forecast) are the observation's float32 values widened to float64, so they
+equal the observation exactly.
+
+QoS (explicit, see the constants below): the state topics (observation, biomass, paw, weather,
+step_result, /clock) are reliable + transient_local with depth 1, so a subscriber that joins late still
+gets the latest day. Commands and their status are reliable + volatile, depth 10 (a command is for one
+day; a late-joining simulator must not apply an old one).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from datetime import date, datetime, timezone
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float32MultiArray, Float64MultiArray, MultiArrayDimension
+
+from .task.core import BIOMASS, FORECAST, OBSERVATION_NAMES, OBSERVATION_SIZE, OBSERVATION_UNITS, PAW, TODAY
+
+NODE_NAME = "crop_sim"
+
+STEP_SERVICE = "step"
+RESET_SERVICE = "reset"
+OBSERVATION_TOPIC = "observation"
+BIOMASS_TOPIC = "biomass"
+PAW_TOPIC = "paw"
+WEATHER_TODAY_TOPIC = "weather/today"
+WEATHER_FORECAST_TOPIC = "weather/forecast"
+STEP_RESULT_TOPIC = "step_result"
+IRRIGATION_TOPIC = "irrigation"
+IRRIGATION_STEP_TOPIC = "irrigation_step"
+IRRIGATION_STATUS_TOPIC = "irrigation_status"
+CLOCK_TOPIC = "/clock"
+
+# State topics: the latest day survives for late subscribers.
+STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Commands and command status: every message matters, none is replayed to a late joiner.
+COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+# What a reader that must see every day (agent, bridge) uses on the state topics: reliable, volatile (no
+# replay of a previous season's last day), a queue deep enough for a burst.
+READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE)
+# A late joiner that wants the latest day at once (monitoring, tests).
+LATCHED_READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+# Observation layout: the task's own names and units (crop_sim_ros.task.core), as "name[unit]" labels.
+OBSERVATION_LABELS = tuple(f"{name}[{unit}]" for name, unit in zip(OBSERVATION_NAMES, OBSERVATION_UNITS))
+OBS_SIZE = OBSERVATION_SIZE  # 20
+OBS_BIOMASS, OBS_DAY, OBS_TODAY, OBS_FORECAST, OBS_PAW = BIOMASS, 2, TODAY, FORECAST, PAW
+
+BIOMASS_LABELS = ("day[d]", OBSERVATION_LABELS[BIOMASS])
+PAW_LABELS = ("day[d]", OBSERVATION_LABELS[PAW])
+WEATHER_TODAY_LABELS = ("day[d]",) + OBSERVATION_LABELS[TODAY]
+WEATHER_FORECAST_LABELS = ("for_day[d]",) + OBSERVATION_LABELS[FORECAST]
+STEP_RESULT_LABELS = ("episode[1]", "day[d]", "irrigation[mm]", "reward[1]", "terminated[0/1]",
+                      "truncated[0/1]", "yield[t/ha]", "return[1]", "command_sequence[1]")
+IRRIGATION_LABELS = ("day[d]", "irrigation[mm]", "episode[1]")
+
+STATUS_NAME = "crop_sim/irrigation"
+
+
+def _layout(message, labels) -> None:
+    message.layout.dim = [MultiArrayDimension(label=",".join(labels), size=len(labels), stride=len(labels))]
+    message.layout.data_offset = 0
+
+
+def float64_array(labels, values) -> Float64MultiArray:
+    message = Float64MultiArray()
+    _layout(message, labels)
+    message.data = [float(v) for v in values]
+    return message
+
+
+def observation_message(observation) -> Float32MultiArray:
+    """The observation (20 float32) as a Float32MultiArray; the values are not re-rounded."""
+    message = Float32MultiArray()
+    _layout(message, OBSERVATION_LABELS)
+    message.data = observation  # a float32 numpy array is copied as-is (no float64 round trip)
+    return message
+
+
+def observation_from_message(message):
+    """Float32MultiArray -> (20,) float32 numpy array, bit for bit."""
+    import numpy as np  # noqa: PLC0415
+
+    values = np.asarray(message.data, dtype=np.float32)
+    if values.shape != (OBS_SIZE,):
+        raise ValueError(f"observation message has {values.size} values, expected {OBS_SIZE}")
+    return values
+
+
+def observation_list(observation) -> list[float]:
+    """The float32 observation as JSON-ready floats (float64 widening is exact; JSON keeps float64 exactly)."""
+    return [float(v) for v in observation]
+
+
+def irrigation_command(day: int, mm: float, episode: int | None = None) -> Float64MultiArray:
+    """A command for ``day`` (optionally only valid in ``episode``, the simulator's reset counter)."""
+    if episode is None:
+        return float64_array(IRRIGATION_LABELS[:2], (day, mm))
+    return float64_array(IRRIGATION_LABELS, (day, mm, episode))
+
+
+def sim_time(sowing: date, day: int) -> Time:
+    """Farm time of ``day``: midnight UTC of the sowing date plus ``day`` days."""
+    seconds = int(datetime(sowing.year, sowing.month, sowing.day, tzinfo=timezone.utc).timestamp()) + 86400 * day
+    return Time(sec=seconds, nanosec=0)
+
+
+def clock_message(sowing: date, day: int) -> Clock:
+    return Clock(clock=sim_time(sowing, day))
+
+
+def status_message(accepted: bool, text: str, day, mm, sequence: int, current_day: int) -> DiagnosticStatus:
+    """The fate of one irrigation command (values as repr strings: they parse back to the same floats)."""
+    return DiagnosticStatus(
+        level=DiagnosticStatus.OK if accepted else DiagnosticStatus.ERROR, name=STATUS_NAME, message=text,
+        hardware_id="", values=[KeyValue(key="day", value=repr(day)), KeyValue(key="irrigation_mm", value=repr(mm)),
+                                KeyValue(key="sequence", value=str(sequence)),
+                                KeyValue(key="current_day", value=str(current_day)),
+                                KeyValue(key="accepted", value="true" if accepted else "false")])
+
+
+def status_values(message: DiagnosticStatus) -> dict:
+    """DiagnosticStatus of a command -> {"day", "irrigation_mm", "sequence", "current_day", "accepted", "message"}."""
+    values = {kv.key: kv.value for kv in message.values}
+    out = {"accepted": values.get("accepted") == "true", "message": message.message}
+    for key in ("day", "irrigation_mm"):
+        try:
+            out[key] = float(values.get(key, "nan"))
+        except ValueError:
+            out[key] = math.nan
+    for key in ("sequence", "current_day"):
+        out[key] = int(values.get(key, "-1"))
+    return out
+
+
+def summary_json(summary: dict) -> str:
+    """A step/reset summary as compact JSON (floats as repr: they parse back exactly; NaN/inf as null)."""
+    def clean(v):
+        if isinstance(v, float) and not math.isfinite(v):
+            return None
+        return v
+    return json.dumps({k: clean(v) for k, v in summary.items()}, separators=(",", ":"))

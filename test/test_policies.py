@@ -1,0 +1,206 @@
+"""Policies: the shared interface, the rules on hand-made observations, the hindsight oracle, the SB3
+policy file loader and the evaluation table (fast: no training)."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from crop_agent_ros.policies import (ConstantPolicy, Policy, RefillPolicy, ZeroPolicy, make_policy)
+from crop_agent_ros.policies.base import (FORECAST_RAIN_MM, OBS_SIZE, PAW_MM, TODAY_RAIN_MM, SeasonContext)
+
+
+def observation(paw=60.0, today_rain=0.0, forecast_rain=0.0, day=50):
+    obs = np.array([5.0, 800.0, day, 25, 10, 17.5, today_rain, 25, 369, 12, 2,
+                    25, 10, 17.5, forecast_rain, 25, 369, 12, 2, paw], dtype=np.float32)
+    assert obs.shape == (OBS_SIZE,)
+    return obs
+
+
+@pytest.mark.parametrize("name", ["zero", "constant10", "constant3.5", "best-constant", "refill", "margin4"])
+def test_every_rule_has_the_interface(name):
+    policy = make_policy(name)
+    assert isinstance(policy, Policy)
+    assert isinstance(policy.name, str) and policy.name
+    policy.reset(seed=0)
+    single = policy.act(observation())
+    assert isinstance(single, float) and 0.0 <= single <= 100.0
+    batch = policy.act(np.stack([observation(paw=p) for p in (10.0, 60.0, 119.0)]))
+    assert batch.shape == (3,) and np.all((batch >= 0) & (batch <= 100))
+
+
+def test_bad_observation_shape_and_unknown_names_are_rejected():
+    with pytest.raises(ValueError, match="shape"):
+        ZeroPolicy().act(np.zeros(19))
+    with pytest.raises(ValueError, match="unknown policy"):
+        make_policy("sprinkler")
+    with pytest.raises(ValueError):
+        ConstantPolicy(150.0)
+
+
+def test_zero_and_constant():
+    assert ZeroPolicy().act(observation()) == 0.0
+    assert ConstantPolicy(10.0).act(observation()) == 10.0
+    assert np.all(make_policy("constant10").act(np.stack([observation()] * 4)) == 10.0)
+
+
+def test_refill_irrigates_to_target_below_threshold():
+    rule = RefillPolicy(threshold_mm=70.0, target_mm=100.0, skip_rain_mm=10.0)
+    assert rule.act(observation(paw=50.0)) == pytest.approx(50.0)           # 100 - 50
+    assert rule.act(observation(paw=50.0, today_rain=8.0)) == pytest.approx(42.0)  # today's rain counts
+    assert rule.act(observation(paw=80.0)) == 0.0                            # above the threshold
+    assert rule.act(observation(paw=0.0)) == 100.0                           # capped at 100 mm
+
+
+def test_refill_skips_when_rain_is_forecast():
+    rule = RefillPolicy(threshold_mm=70.0, target_mm=100.0, skip_rain_mm=10.0)
+    assert rule.act(observation(paw=50.0, forecast_rain=25.0)) == 0.0
+    assert rule.act(observation(paw=50.0, forecast_rain=5.0)) == pytest.approx(50.0)
+
+
+def test_refill_parameters_per_field():
+    rule = RefillPolicy(threshold_mm=np.array([70.0, 40.0]), target_mm=np.array([100.0, 90.0]), skip_rain_mm=10.0)
+    np.testing.assert_allclose(rule.act(np.stack([observation(paw=50.0)] * 2)), [50.0, 0.0])
+
+
+def test_demand_margin_rule_refills_to_the_no_stress_level_plus_margin():
+    from crop_agent_ros.policies.sb3 import estimated_et0_mm
+    obs = observation(paw=30.0)
+    level = float(estimated_et0_mm(obs[None])[0]) / 0.096
+    assert 20.0 < level < 120.0
+    assert make_policy("margin4").act(obs) == pytest.approx(level + 4.0 - 30.0, rel=1e-6)
+    assert make_policy("margin4").act(observation(paw=30.0, today_rain=5.0)) == pytest.approx(level - 1.0 - 30.0,
+                                                                                              rel=1e-6)
+    assert make_policy("margin0").act(observation(paw=level + 1.0)) == 0.0
+
+
+def test_tuned_rules_come_from_generated_seasons():
+    from crop_agent_ros.policies.rules import BEST_CONSTANT_FILE, REFILL_FILE
+    from crop_agent_ros.policies.tuning import MARGIN_FILE
+    for path in (BEST_CONSTANT_FILE, REFILL_FILE, MARGIN_FILE):
+        tuned = json.loads(path.read_text())
+        assert tuned["tuned_on"]["scenario"] == "benton-generated"
+    assert 0.0 < make_policy("best-constant").mm_per_day <= 100.0
+
+
+# --- the hindsight oracle -------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def short_season():
+    """The first 70 days of the paper's real season (Benton E. 2000), harvested on day 60."""
+    from crop_agent_ros.policies.rollout import season_contexts
+    full = season_contexts("benton-2000")[0]
+    days = 70
+    params = replace(full.params, harvest_day=np.array([60.0]))
+    return SeasonContext("benton-2000-short", params, full.tmax_degc[:days], full.tmin_degc[:days],
+                         full.srad_mj_m2[:days], full.rain_mm[:days], full.et0_mm[:days], full.water_cost_per_mm)
+
+
+def test_oracle_beats_constant_and_zero_on_a_short_real_season(short_season):
+    from crop_agent_ros.policies.oracle import find_best_schedule, schedule_returns
+    result = find_best_schedule(short_season, finest_step_mm=0.25)
+    schedule = result.schedule_mm
+    assert schedule.shape == (70,) and np.all(np.isfinite(schedule))
+    assert np.all((schedule >= 0.0) & (schedule <= 100.0))
+    days = len(schedule)
+    returns, _ = schedule_returns(short_season, np.stack([schedule, np.zeros(days), np.full(days, 10.0),
+                                                          np.full(days, 5.0)], axis=1))
+    assert returns[0] == pytest.approx(result.return_value)
+    assert returns[0] >= returns[1] and returns[0] >= returns[2] and returns[0] >= returns[3]
+    assert result.return_value <= result.potential_yield_t_ha + 1e-9  # the rigorous bound
+    assert result.bound_gap >= 0.0
+
+
+def test_oracle_policy_plays_its_schedule_by_day(short_season):
+    from crop_agent_ros.policies.oracle import OraclePolicy
+    oracle = make_policy("oracle")
+    assert isinstance(oracle, OraclePolicy)
+    with pytest.raises(RuntimeError):
+        oracle.act(observation())
+    oracle.search_options = {"finest_step_mm": 1.0}
+    oracle.begin_season(short_season)
+    schedule = oracle.result.schedule_mm
+    assert oracle.act(observation(day=30)) == pytest.approx(schedule[30])
+    oracle.begin_season([short_season, short_season])
+    np.testing.assert_allclose(oracle.act(np.stack([observation(day=3), observation(day=40)])),
+                               [schedule[3], schedule[40]])
+
+
+# --- the SB3 policy file ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("mode", ["mm", "target", "margin"])
+def test_sb3_loader_round_trips_an_untrained_ppo(tmp_path, mode):
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+    from crop_agent_ros.policies.sb3 import N_FEATURES, SB3Policy, action_to_mm, features
+
+    class Dummy(gym.Env):
+        observation_space = gym.spaces.Box(-10, 10, (N_FEATURES,), np.float32)
+        action_space = gym.spaces.Box(-1, 1, (1,), np.float32)
+
+        def reset(self, *, seed=None, options=None):
+            return np.zeros(N_FEATURES, np.float32), {}
+
+        def step(self, action):
+            return np.zeros(N_FEATURES, np.float32), 0.0, True, False, {}
+
+    model = PPO("MlpPolicy", make_vec_env(Dummy, 1), n_steps=8, batch_size=8, policy_kwargs={"net_arch": [8]},
+                seed=0, device="cpu")
+    path = tmp_path / "tiny.zip"
+    model.save(path)
+    (tmp_path / "tiny.json").write_text(json.dumps({"action_mode": mode, "feature_set": "full",
+                                                    "action_mapping": {"margin_center_mm": 4.0}}))
+    policy = make_policy(f"ppo:{path}")
+    assert isinstance(policy, SB3Policy) and policy.action_mode == mode
+    obs = np.stack([observation(paw=p) for p in (20.0, 60.0, 110.0)])
+    got = policy.act(obs)
+    expected = action_to_mm(model.predict(features(obs), deterministic=True)[0], obs, mode)
+    np.testing.assert_allclose(got, expected)
+    assert np.all((got >= 0) & (got <= 100))
+    assert isinstance(policy.act(obs[0]), float)
+
+
+def test_missing_policy_file_says_so(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        make_policy(f"ppo:{tmp_path / 'none.zip'}")
+
+
+def test_features_are_finite_and_bounded():
+    from crop_agent_ros.policies.sb3 import N_FEATURES, features
+    x = features(np.stack([observation(paw=p, today_rain=r) for p, r in ((0, 0), (60, 30), (150, 0))]))
+    assert x.shape == (3, N_FEATURES) and x.dtype == np.float32
+    assert np.all(np.isfinite(x)) and np.all(np.abs(x) <= 10)
+
+
+# --- evaluation ----------------------------------------------------------------------------------------
+
+def test_parse_seeds():
+    from crop_agent_ros.evaluate import parse_seeds
+    assert parse_seeds("0..3") == [0, 1, 2, 3]
+    assert parse_seeds("4,7") == [4, 7]
+
+
+def test_evaluate_table_on_a_tiny_run(tmp_path):
+    from crop_agent_ros.evaluate import evaluate, format_table, paired_difference, summarize
+    rows, episodes, oracle_results, contexts = evaluate(["zero", "constant10", "oracle"], "benton-2000", [0, 1],
+                                                        record=True)
+    assert len(rows) == 3 * 2 * 1
+    summary = summarize(rows)
+    assert summary["zero"]["irrigation_mm"]["mean"] == 0.0
+    assert summary["constant10"]["irrigation_mm"]["mean"] > 1000
+    assert summary["oracle"]["regret"]["mean"] == pytest.approx(0.0, abs=1e-9)
+    for name in ("zero", "constant10"):
+        assert summary[name]["regret"]["mean"] > 0.0
+        assert summary[name]["return"]["mean"] <= oracle_results[0].return_value
+    e = summary["constant10"]
+    assert 0.9 < e["normalized_return"]["mean"] <= 1.0
+    row = next(r for r in rows if r["policy"] == "constant10")
+    assert row["water_productivity_kg_m3"] == pytest.approx(
+        row["yield_t_ha"] * 1000 / ((row["irrigation_mm"] + row["rain_mm"]) * 10))
+    diff = paired_difference(rows, "constant10", "zero")
+    assert diff["n"] == 2 and diff["wins"] == 2 and diff["mean"] > 5
+    table = format_table(summary)
+    assert "constant10" in table and "regret" in table
+    assert episodes["zero"][0].daily["paw_mm"].shape[1] == 1

@@ -1,0 +1,557 @@
+"""The simulator node over ROS 2: a season grown by the agent node in another process, topics, the season
+log, bad inputs, resets, concurrent clients, a command racing a step, a crash and a restart, free running.
+
+Every node runs as its own process (``python -m crop_sim_ros.sim_node``, exactly what ``ros2 run`` starts),
+on this test process's private ROS_DOMAIN_ID and a namespace of its own (see ros_support).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import threading
+import time
+import uuid
+from datetime import date
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy")
+
+import ros_support  # noqa: E402  (sets ROS_DOMAIN_ID / discovery range before any context exists)
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
+from rcl_interfaces.srv import SetParameters  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from std_msgs.msg import Float32MultiArray, Float64MultiArray  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from crop_agent_ros.ros_client import PrivateRos, call, wait_for_service  # noqa: E402
+from crop_agent_ros.ros_process import NodeProcess, _shm_files_of, clean_dead_ports, isolated_ros_env  # noqa: E402
+from crop_agent_ros.sim_client import SimClient, SimError  # noqa: E402
+from crop_sim_ros import ros_interface as ri  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def shared_sim(tmp_path_factory):
+    """One simulator for the tests that reset it first; started from the shipped parameter file."""
+    tmp = tmp_path_factory.mktemp("shared_sim")
+    process, name, log = ros_support.start_sim(tmp, params_file=ros_support.PARAMS_FILE)
+    yield process, name, log
+    assert process.stop() == 0, process.output()
+
+
+@pytest.fixture
+def ros():
+    client = PrivateRos(f"test_client_{uuid.uuid4().hex[:8]}")
+    yield client
+    client.close()
+
+
+def connect(ros, name, **kwargs) -> SimClient:
+    client = SimClient(ros.node, ros.executor, name, **kwargs)
+    client.connect(30)
+    return client
+
+
+def step_client(ros, name):
+    """A ~/step client that the simulator has surely discovered: wait for the service, then one idempotent
+    round trip (get_parameters) from the same node, whose endpoints all exist already."""
+    from rcl_interfaces.srv import GetParameters
+
+    step = ros.node.create_client(Trigger, f"{name}/step")
+    probe = ros.node.create_client(GetParameters, f"{name}/get_parameters")
+    wait_for_service(ros.executor, step, 30)
+    wait_for_service(ros.executor, probe, 30)
+    call(ros.executor, probe, GetParameters.Request(names=["mode"]))
+    ros.node.destroy_client(probe)
+    return step
+
+
+def set_parameter(ros, name, **values):
+    client = ros.node.create_client(SetParameters, f"{name}/set_parameters")
+    wait_for_service(ros.executor, client, 20)
+    request = SetParameters.Request()
+    for key, value in values.items():
+        if isinstance(value, str):
+            v = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
+        elif isinstance(value, float):
+            v = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+        else:
+            v = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=value)
+        request.parameters.append(Parameter(name=key, value=v))
+    response = call(ros.executor, client, request)
+    ros.node.destroy_client(client)
+    return response.results
+
+
+# --- a season grown by two processes ------------------------------------------------------------------------
+
+def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
+    sim, name, log = ros_support.start_sim(tmp_path, params={"seed": 3})
+    agent = None
+    try:
+        got = {key: [] for key in ("obs", "biomass", "paw", "today", "forecast", "result", "clock")}
+        subs = [
+            ros.node.create_subscription(Float32MultiArray, f"{name}/observation",
+                                         lambda m: got["obs"].append(ri.observation_from_message(m)), ri.READER_QOS),
+            ros.node.create_subscription(Float64MultiArray, f"{name}/biomass",
+                                         lambda m: got["biomass"].append(list(m.data)), ri.READER_QOS),
+            ros.node.create_subscription(Float64MultiArray, f"{name}/paw",
+                                         lambda m: got["paw"].append(list(m.data)), ri.READER_QOS),
+            ros.node.create_subscription(Float64MultiArray, f"{name}/weather/today",
+                                         lambda m: got["today"].append(list(m.data)), ri.READER_QOS),
+            ros.node.create_subscription(Float64MultiArray, f"{name}/weather/forecast",
+                                         lambda m: got["forecast"].append(list(m.data)), ri.READER_QOS),
+            ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
+                                         lambda m: got["result"].append(list(m.data)), ri.READER_QOS),
+        ]
+        ros.spin_until(lambda: all(s.get_publisher_count() >= 1 for s in subs), 30, "the simulator's topics")
+        agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name="agent_node",
+                            ros_args=["-p", f"sim_node:={name}", "-p", "policy:=refill", "-p", "drive:=true"],
+                            log_path=tmp_path / "agent.out")
+        ros.spin_until(lambda: agent.poll() is not None, 60, "the agent to grow its season")
+        output = agent.output()
+        assert agent.poll() == 0, output
+        summaries = [json.loads(line.split("season summary: ", 1)[1]) for line in output.splitlines()
+                     if line.startswith("season summary: ")]
+        assert len(summaries) == 1
+        season = summaries[0]
+        assert season["matured"] and season["yield_t_ha"] > 5 and season["irrigation_mm"] > 0
+        episode = season["episode"]
+
+        # the log: one row per day of the agent's episode, days 0..N-1, consistent with the summary
+        rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == episode]
+        assert [int(r["day"]) for r in rows] == list(range(season["days"]))
+        assert math.isclose(sum(float(r["irrigation_mm"]) for r in rows), season["irrigation_mm"], rel_tol=1e-12)
+        assert float(rows[-1]["episode_return"]) == pytest.approx(season["return"], rel=1e-12)
+        assert rows[-1]["terminated"] == "1" and float(rows[-1]["end_yield_t_ha"]) == season["yield_t_ha"]
+        assert all(r["scenario"] == "benton-generated" and r["seed"] == "3" for r in rows)
+        by_day = {int(r["day"]): r for r in rows}
+
+        # topics: every message names its day and agrees exactly with the observation of that day
+        ros.spin_until(lambda: got["result"] and got["result"][-1][1] == season["days"], 10, "the last day")
+        observations = {}
+        for obs in got["obs"]:
+            observations.setdefault(int(obs[ri.OBS_DAY]), []).append(obs)
+        for day, row in by_day.items():  # the log's observation columns are the topic's float32 values
+            if day in observations and day > 0:
+                logged = np.array([float(row[c]) for c in row if c.startswith("obs_")], dtype=np.float32)
+                assert any(o.tobytes() == logged.tobytes() for o in observations[day])
+        final = observations[season["days"]][-1]
+        for key, index in (("biomass", ri.OBS_BIOMASS), ("paw", ri.OBS_PAW)):
+            day, value = got[key][-1]
+            assert day == season["days"] and value == float(final[index])
+        assert got["today"][-1] == [float(season["days"])] + final[ri.OBS_TODAY].astype(float).tolist()
+        assert got["forecast"][-1] == [float(season["days"] + 1)] + final[ri.OBS_FORECAST].astype(float).tolist()
+        result = got["result"][-1]
+        assert result[0] == episode and result[4] == 1.0 and result[6] == season["yield_t_ha"]
+        days_seen = [r[1] for r in got["result"] if r[0] == episode]
+        assert days_seen == sorted(days_seen) and len(days_seen) > season["days"] // 2
+
+        # a late subscriber (transient local) gets the latest day at once, /clock in farm time
+        late = {"obs": [], "clock": []}
+        ros.node.create_subscription(Float32MultiArray, f"{name}/observation",
+                                     lambda m: late["obs"].append(ri.observation_from_message(m)),
+                                     ri.LATCHED_READER_QOS)
+        ros.node.create_subscription(Clock, "/clock", lambda m: late["clock"].append(m), ri.LATCHED_READER_QOS)
+        ros.spin_until(lambda: late["obs"] and late["clock"], 10, "the latched observation and clock")
+        assert late["obs"][-1].tobytes() == final.tobytes()
+        expected = ri.sim_time(date(2000, 4, 1), season["days"]).sec
+        ros.spin_until(lambda: any(c.clock.sec == expected for c in late["clock"]), 10, "farm time on /clock")
+    finally:
+        if agent is not None:
+            agent.stop()
+        assert sim.stop() == 0, sim.output()
+
+
+# --- bad input ------------------------------------------------------------------------------------------------
+
+def raw_step(ros, name, timeout: float = 5.0) -> dict:
+    """One ~/step call (no command) from ``ros``'s node, while no other client steps this simulator.
+
+    A service request sent just after discovery can be lost in DDS (the server's reader had not yet matched
+    the new client's writer; ROS 2 services have no retry). So if no response comes, this looks at the
+    latched ~/step_result: the day did not advance -> the request was lost, send it again; it advanced -> the
+    response was lost, the step_result is the outcome. Never steps twice."""
+    cache = ros.__dict__.setdefault("_raw_step", {})
+    if name not in cache:
+        latest: list = []
+        ros.node.create_subscription(Float64MultiArray, f"{name}/step_result", lambda m: latest.append(list(m.data)),
+                                     ri.LATCHED_READER_QOS)
+        cache[name] = (step_client(ros, name), latest)
+        ros.spin_until(lambda: latest, 20, "the latched step result")
+    client, latest = cache[name]
+    before = latest[-1][:2]  # (episode, day)
+    for _ in range(5):
+        future = client.call_async(Trigger.Request())
+        try:
+            ros.spin_until(future.done, timeout, "the step response")
+            response = future.result()
+            return {"success": response.success, **json.loads(response.message)}
+        except TimeoutError:
+            client.remove_pending_request(future)
+            if latest[-1][:2] != before:  # stepped, the response was lost
+                r = latest[-1]
+                return {"success": True, "episode": int(r[0]), "day": int(r[1]), "irrigation_mm": r[2],
+                        "reward": r[3], "terminated": r[4] == 1.0, "truncated": r[5] == 1.0,
+                        "command_sequence": int(r[8])}
+    raise TimeoutError(f"no step of {name} after 5 attempts")
+
+
+def test_bad_commands_are_rejected_and_never_applied(shared_sim, ros):
+    _, name, log = shared_sim
+    client = connect(ros, name)
+    client.reset(seed=11)
+    episode = client.episode
+    statuses = []
+    status_sub = ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
+                                              lambda m: statuses.append(ri.status_values(m)), ri.READER_QOS)
+    publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation", ri.COMMAND_QOS)
+    ros.spin_until(lambda: publisher.get_subscription_count() >= 1 and status_sub.get_publisher_count() >= 1, 20,
+                   "the simulator's command topics")
+    client.step(5.0)  # day 0 -> 1, with an accepted command
+    bad = {"nan": [1.0, math.nan], "inf": [1.0, math.inf], "negative": [1.0, -1.0], "over": [1.0, 100.5],
+           "past": [0.0, 5.0], "future": [2.0, 5.0], "fraction": [1.5, 5.0], "short": [1.0],
+           "episode": [1.0, 5.0, float(episode - 1)], "long": [1.0, 5.0, float(episode), 9.0]}
+    for values in bad.values():
+        message = Float64MultiArray()
+        message.data = values
+        publisher.publish(message)
+    rejected = lambda: [s for s in statuses if not s["accepted"]]  # noqa: E731
+    ros.spin_until(lambda: len(rejected()) >= len(bad), 10, "the status of every bad command")
+    assert len(rejected()) == len(bad) and [s["irrigation_mm"] for s in statuses if s["accepted"]] in ([], [5.0])
+    reasons = [s["message"] for s in rejected()]
+    for word in ("not a finite", "negative", "exceeds", "past", "future", "whole number", "expected", "episode"):
+        assert any(word in r for r in reasons), (word, reasons)
+    summary = raw_step(ros, name)  # nothing bad was applied on day 1: no command, 0 mm
+    assert summary["success"] and summary["day"] == 2
+    assert summary["irrigation_mm"] == 0.0 and summary["command_sequence"] == -1
+    client.day = 2
+    _, _, _, _, summary = client.step(100.0)  # the limit itself is fine
+    assert summary["irrigation_mm"] == 100.0
+    rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == episode]
+    assert [float(r["irrigation_mm"]) for r in rows] == [5.0, 0.0, 100.0]
+
+    # run to the end: a step after the season ended fails cleanly, commands are refused, reset works
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = client.step(3.0)
+        done = terminated or truncated
+    summary = raw_step(ros, name)
+    assert not summary["success"] and "ended" in summary["error"] and summary["day"] == client.day
+    client.ended = False
+    with pytest.raises(SimError, match="ended"):
+        client.command(1.0)
+    client.reset(seed=11)
+    assert client.day == 0
+
+
+def test_bad_parameters_are_refused(shared_sim, ros):
+    _, name, _ = shared_sim
+    cases = {"scenario": "no-such-scenario", "crop": "banana", "soil": "moon dust", "mode": "fast"}
+    for key, value in cases.items():
+        (result,) = set_parameter(ros, name, **{key: value})
+        assert not result.successful and result.reason, key
+    (result,) = set_parameter(ros, name, seed=-5)  # outside the declared range
+    assert not result.successful
+    (result,) = set_parameter(ros, name, co2_ppm=-0.5)
+    assert not result.successful and "co2_ppm" in result.reason
+    client = connect(ros, name)
+    _, info = client.reset(seed=2)  # the node still works with its old values
+    assert info["scenario"] == "benton-generated"
+
+
+def test_startup_errors_exit_non_zero_with_a_clear_message(tmp_path):
+    broken = tmp_path / "broken.csv"
+    broken.write_text("this is not,an AgWeatherNet file\n1,2\n")
+    scenario = tmp_path / "broken.yaml"
+    scenario.write_text(f"name: broken\nsowing_date: 2000-04-01\nweather:\n  kind: file\n  path: {broken}\n"
+                        "  format: agweathernet\n")
+    cases = {"unknown scenario": {"scenario": "no-such-scenario"}, "unknown crop": {"crop": "banana"},
+             "broken weather file": {"scenario": str(scenario)}}
+    processes = {what: ros_support.start_sim(tmp_path, params=params, log_name=f"{i}.csv")[0]
+                 for i, (what, params) in enumerate(cases.items())}
+    try:
+        for what, process in processes.items():
+            assert process.wait(60) == 2, (what, process.output())
+        assert "no-such-scenario" in processes["unknown scenario"].output()
+        assert "banana" in processes["unknown crop"].output()
+        assert "broken.csv" in processes["broken weather file"].output()
+    finally:
+        for process in processes.values():
+            process.stop()
+
+
+# --- resets, concurrency, races ------------------------------------------------------------------------------
+
+def test_reset_mid_season(shared_sim, ros):
+    _, name, log = shared_sim
+    client = connect(ros, name)
+    client.reset(seed=4)
+    first = client.episode
+    for _ in range(5):
+        client.step(2.0)
+    client.command(7.0)  # accepted for day 5 of the old episode ...
+    obs, info = client.reset(seed=4)  # ... and dropped by the reset
+    assert info["episode"] == first + 1 and info["day"] == 0 and obs[ri.OBS_DAY] == 0
+    result = raw_step(ros, name)
+    assert result["day"] == 1 and result["irrigation_mm"] == 0.0 and result["command_sequence"] == -1
+    client.day = 1
+    with pytest.raises(SimError, match="episode"):  # a command of the old episode is refused
+        client.episode = first
+        client.command(1.0)
+    rows = ros_support.read_log(log)
+    old = [r for r in rows if int(r["episode"]) == first]
+    new = [r for r in rows if int(r["episode"]) == first + 1]
+    assert [int(r["day"]) for r in old] == [0, 1, 2, 3, 4]
+    assert [(int(r["day"]), float(r["irrigation_mm"])) for r in new] == [(0, 0.0)]
+
+
+def test_two_clients_stepping_concurrently_are_serialised(shared_sim):
+    _, name, log = shared_sim
+    with PrivateRos(f"setup_{uuid.uuid4().hex[:6]}") as setup:
+        client = connect(setup, name)
+        client.reset(seed=5)
+        episode = client.episode
+    n = 40
+    days: dict[int, list[int]] = {0: [], 1: []}
+    errors = []
+
+    def stepper(k):
+        try:
+            with PrivateRos(f"stepper{k}_{uuid.uuid4().hex[:6]}") as ros:
+                # one step each, one after the other, so that each client's first request (which DDS may lose
+                # right after discovery) is handled safely; then both step at the same time
+                if k == 1:
+                    warmed.wait(60)
+                raw_step(ros, name)
+                step = ros.__dict__["_raw_step"][name][0]
+                if k == 0:
+                    warmed.set()
+                ready.wait(60)
+                for _ in range(n):
+                    response = call(ros.executor, step, Trigger.Request())
+                    assert response.success, response.message
+                    days[k].append(json.loads(response.message)["day"])
+        except BaseException as error:  # noqa: BLE001
+            errors.append(error)
+
+    warmed = threading.Event()
+    ready = threading.Barrier(2)  # both clients connected: then they step at the same time
+    threads = [threading.Thread(target=stepper, args=(k,)) for k in (0, 1)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(120)
+    assert not errors, errors
+    assert sorted(days[0] + days[1]) == list(range(3, 2 * n + 3)), "every day exactly once"
+    assert days[0] == sorted(days[0]) and days[1] == sorted(days[1])
+    rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == episode]
+    assert [int(r["day"]) for r in rows] == list(range(2 * n + 2))
+
+
+def test_command_racing_step_is_applied_exactly_once_to_its_day(shared_sim):
+    """One client floods commands (for the day it believes current, and the next) while another steps:
+    every day gets the latest command accepted for it (by sequence number), or 0 mm, never another day's."""
+    _, name, log = shared_sim
+    with PrivateRos(f"setup_{uuid.uuid4().hex[:6]}") as setup:
+        client = connect(setup, name)
+        client.reset(seed=6)
+        episode = client.episode
+    n_steps = 60
+    acks: list[dict] = []
+    stop = threading.Event()
+    errors = []
+    current = {"day": 0}
+
+    def commander():
+        try:
+            with PrivateRos(f"commander_{uuid.uuid4().hex[:6]}") as ros:
+                ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
+                                             lambda m: acks.append(ri.status_values(m)), ri.READER_QOS)
+                ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
+                                             lambda m: current.__setitem__("day", int(m.data[1])), ri.READER_QOS)
+                publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation", ri.COMMAND_QOS)
+                ros.spin_until(lambda: publisher.get_subscription_count() >= 1, 20, "the command subscriber")
+                rng = np.random.default_rng(0)
+                while not stop.is_set():
+                    if not flowing.is_set() and any(a["accepted"] for a in acks):
+                        flowing.set()  # commands are accepted and acknowledged: the stepper may start
+                    day = current["day"] + int(rng.integers(0, 2))
+                    publisher.publish(ri.irrigation_command(day, float(rng.integers(1, 100))))
+                    ros.executor.spin_once(timeout_sec=0.0005)
+                end = time.monotonic() + 0.3  # collect the last acknowledgements
+                while time.monotonic() < end:
+                    ros.executor.spin_once(timeout_sec=0.05)
+        except BaseException as error:  # noqa: BLE001
+            errors.append(error)
+
+    flowing = threading.Event()
+    thread = threading.Thread(target=commander)
+    thread.start()
+    try:
+        with PrivateRos(f"stepper_{uuid.uuid4().hex[:6]}") as ros:
+            assert flowing.wait(30), "the commander's commands were never accepted"
+            for _ in range(n_steps):
+                response = raw_step(ros, name)
+                assert response["success"], response
+                time.sleep(0.003)  # give the commander (same process, GIL) time to learn the new day
+    finally:
+        stop.set()
+        thread.join(30)
+    assert not errors, errors
+    rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == episode]
+    assert [int(r["day"]) for r in rows] == list(range(n_steps))
+    accepted = [a for a in acks if a["accepted"]]
+    assert accepted, "some commands were accepted"
+    assert any(not a["accepted"] and ("past" in a["message"] or "future" in a["message"]) for a in acks)
+    by_sequence = {a["sequence"]: a for a in acks}
+    applied_sequences = [int(r["command_sequence"]) for r in rows if int(r["command_sequence"]) >= 0]
+    assert len(applied_sequences) == len(set(applied_sequences)), "no command applied twice"
+    applied_days = 0
+    for row in rows:
+        day, sequence, mm = int(row["day"]), int(row["command_sequence"]), float(row["irrigation_mm"])
+        for_day = [a for a in accepted if a["day"] == day and a["sequence"] > 0]
+        if sequence < 0:
+            assert mm == 0.0 and not for_day, row
+            continue
+        applied_days += 1
+        ack = by_sequence.get(sequence)
+        if ack is not None:  # the ack of the applied command: accepted, for this very day, same amount
+            assert ack["accepted"] and ack["day"] == day and ack["irrigation_mm"] == mm
+        assert all(a["sequence"] <= sequence for a in for_day), "the latest accepted command of the day"
+    assert applied_days >= 5, "the race was exercised"
+
+
+# --- crash and restart, free running ---------------------------------------------------------------------------
+
+def test_sim_killed_and_restarted_keeps_its_log(tmp_path, ros):
+    namespace = ros_support.unique_namespace("crash")
+    sim, name, log = ros_support.start_sim(tmp_path, namespace=namespace)
+    try:
+        client = connect(ros, name)
+        client.reset(seed=8)
+        episode = client.episode
+        for day in range(20):
+            client.step(float(day))
+        shm = _shm_files_of(sim.pid)
+        sim.kill()  # SIGKILL mid-season
+        assert sim.poll() == -9
+        assert shm and not any(os.path.exists(p) for p in shm if "_port" not in p), "its /dev/shm files removed"
+        client.close()
+    finally:
+        sim.stop()
+    rows = ros_support.read_log(log)
+    first = [r for r in rows if int(r["episode"]) == episode]
+    assert [(int(r["day"]), float(r["irrigation_mm"])) for r in first] == [(d, float(d)) for d in range(20)]
+    text = log.read_text()
+    assert text.endswith("\n") and text.count("wall_time_utc") == 1
+
+    sim2, name2, _ = ros_support.start_sim(tmp_path, namespace=namespace)
+    try:
+        assert name2 == name
+        with PrivateRos(f"after_crash_{uuid.uuid4().hex[:6]}") as fresh:  # no memory of the dead process
+            client = connect(fresh, name)
+            client.reset(seed=8)
+            for _ in range(5):
+                client.step(1.0)
+            client.close()
+    finally:
+        assert sim2.stop() == 0, sim2.output()
+    ros.close()  # the last participant of this test that knew the killed process
+    clean_dead_ports()
+    # its own segments are gone; a port segment that a live peer (another node of this run) still maps goes at
+    # the latest when this process exits (clean_dead_ports runs at exit)
+    assert all("fastrtps_port" in p for p in shm if os.path.exists(p)), "the killed process's segments removed"
+    rows = ros_support.read_log(log)
+    assert len(rows) == len(first) + 5 and rows[:len(first)] == first
+    runs = {r["run_id"] for r in rows}
+    assert len(runs) == 2 and log.read_text().count("wall_time_utc") == 1
+
+
+def test_free_running_mode_steps_by_itself(shared_sim, ros):
+    _, name, _ = shared_sim
+    client = connect(ros, name)
+    client.reset(seed=9)
+    days = []
+    ros.node.create_subscription(Float64MultiArray, f"{name}/step_result", lambda m: days.append(m.data[1]),
+                                 ri.READER_QOS)
+    try:
+        (result,) = set_parameter(ros, name, days_per_second=200.0)
+        assert result.successful
+        (result,) = set_parameter(ros, name, mode="free_running")
+        assert result.successful
+        ros.spin_until(lambda: days and days[-1] >= 20, 20, "20 free-running days")
+        step = step_client(ros, name)
+        for _ in range(3):  # refused without a change of state: safe to repeat if DDS lost the first request
+            try:
+                response = call(ros.executor, step, Trigger.Request(), timeout=5)
+                break
+            except TimeoutError:
+                continue
+        assert not response.success and "free_running" in response.message
+    finally:
+        (result,) = set_parameter(ros, name, mode="lockstep")
+        assert result.successful
+    seen = [d for d in days if d > 0]
+    assert seen == sorted(seen)
+
+
+def test_ros2_run_wrapper_starts_the_node_from_its_prefix(tmp_path):
+    """scripts/sim_node as installed in <prefix>/lib/crop_sim_ros/ (where `ros2 run` looks) runs
+    <prefix>/bin/python -m crop_sim_ros.sim_node with the arguments it was given."""
+    import shutil
+    import subprocess
+    import sys
+
+    prefix = tmp_path / "prefix"
+    (prefix / "bin").mkdir(parents=True)
+    (prefix / "lib" / "crop_sim_ros").mkdir(parents=True)
+    python = prefix / "bin" / "python"  # stands for the environment's python
+    python.write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
+    python.chmod(0o755)
+    for exe in ("sim_node", "agent_node"):
+        shutil.copy2(ros_support.REPO / "scripts" / exe, prefix / "lib" / "crop_sim_ros" / exe)
+        assert os.access(prefix / "lib" / "crop_sim_ros" / exe, os.X_OK)
+    done = subprocess.run([str(prefix / "lib" / "crop_sim_ros" / "sim_node"), "--ros-args", "-p",
+                           "scenario:=no-such-scenario", "-p", f"log_path:={tmp_path / 'log.csv'}"],
+                          env=isolated_ros_env(), cwd=ros_support.REPO, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2 and "no-such-scenario" in done.stderr + done.stdout
+
+
+def test_stepping_commands_step_once_and_only_their_day(shared_sim, ros):
+    """~/irrigation_step: a command that also steps. Repeating it cannot step twice (its day is then past);
+    a bad one steps nothing."""
+    _, name, log = shared_sim
+    client = connect(ros, name)
+    client.reset(seed=13)
+    episode = client.episode
+    statuses, results = [], []
+    status_sub = ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
+                                              lambda m: statuses.append(ri.status_values(m)), ri.READER_QOS)
+    result_sub = ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
+                                              lambda m: results.append(list(m.data)), ri.READER_QOS)
+    publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation_step", ri.COMMAND_QOS)
+    ros.spin_until(lambda: publisher.get_subscription_count() >= 1 and status_sub.get_publisher_count() >= 1
+                   and result_sub.get_publisher_count() >= 1, 20, "the simulator's topics")
+    for _ in range(5):  # the same stepping command five times
+        publisher.publish(ri.irrigation_command(0, 4.0, episode))
+    ros.spin_until(lambda: len([s for s in statuses if not s["accepted"]]) >= 4 and results, 10, "the outcome")
+    assert [r[1] for r in results] == [1.0] and results[0][2] == 4.0
+    assert all("past" in s["message"] for s in statuses if not s["accepted"])
+    for values in ([1.0, math.nan, float(episode)], [1.0, 150.0, float(episode)], [3.0, 1.0, float(episode)]):
+        message = Float64MultiArray()
+        message.data = values
+        publisher.publish(message)
+    ros.spin_until(lambda: len([s for s in statuses if not s["accepted"]]) >= 7, 10, "three more refusals")
+    assert [r[1] for r in results] == [1.0], "no step for a bad command"
+    rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == episode]
+    assert [(int(r["day"]), float(r["irrigation_mm"])) for r in rows] == [(0, 4.0)]
+    client.day = 1
+    obs, reward, terminated, truncated, summary = client.step(2.0)  # the client's own topic path
+    assert summary["day"] == 2 and summary["irrigation_mm"] == 2.0 and obs[ri.OBS_DAY] == 2
