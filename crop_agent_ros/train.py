@@ -82,19 +82,10 @@ class PolicyOfModel:
 
 
 def training_vec_env(scenario, n_envs: int, seed: int):
-    """The task's SB3 VecEnv, also passing each field's true biomass (t/ha, after the step; for a field that
-    ended, its new season's) in ``infos[i]["true_biomass_t_ha"]`` for the reward shaping."""
+    """The task's SB3 VecEnv; its infos carry each field's true biomass for the reward shaping."""
     from crop_sim_ros.task.sb3_vec import IrrigationSB3VecEnv
 
-    class WithBiomass(IrrigationSB3VecEnv):
-        def step_wait(self):
-            obs, rewards, dones, infos = super().step_wait()
-            biomass = self.venv._state.crop.biomass_kg_ha / 1000.0  # the state the next observation shows
-            for i, info in enumerate(infos):
-                info["true_biomass_t_ha"] = float(biomass[i])
-            return obs, rewards, dones, infos
-
-    return WithBiomass(n_envs, scenario, seed=seed)
+    return IrrigationSB3VecEnv(n_envs, scenario, seed=seed)
 
 
 def feature_action_wrapper(venv, action_mode: str, feature_set: str = "full", mapping: dict | None = None,

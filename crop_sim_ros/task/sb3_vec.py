@@ -4,7 +4,8 @@ Kept apart from ``crop_sim_ros.task`` (which does not import it) because Stable-
 SB3 semantics: an ending field resets within the same step; its last observation is in
 ``infos[i]["terminal_observation"]``, ``infos[i]["TimeLimit.truncated"]`` is True when the season's weather
 ran out before maturity, and ``infos[i]["episode_return"]``, ``infos[i]["normalized_return"]`` and
-``infos[i]["potential_yield_t_ha"]`` describe the ended season.
+``infos[i]["potential_yield_t_ha"]`` describe the ended season. Every step's ``infos[i]["true_biomass_t_ha"]``
+is the field's noise-free biomass behind its next observation.
 """
 
 from __future__ import annotations
@@ -45,11 +46,13 @@ class IrrigationSB3VecEnv(VecEnv):
     def step_wait(self):
         obs, rewards, terminations, truncations, infos = self.venv.step(self._actions)
         dones = terminations | truncations
-        result = [{} for _ in range(self.num_envs)]
+        # Each field's true biomass after the step (for a field that ended, its new season's sowing day):
+        # what the next observation shows, without noise (for potential-based reward shaping).
+        result = [{"true_biomass_t_ha": float(b)} for b in infos["true_biomass_t_ha"]]
         if dones.any():
             final = infos["final_info"]
             for i in np.flatnonzero(dones):
-                result[i] = {"terminal_observation": infos["final_obs"][i],
+                result[i] |= {"terminal_observation": infos["final_obs"][i],
                              "TimeLimit.truncated": bool(truncations[i]),
                              **{key: float(final[key][i]) for key in _FINAL_KEYS}}
         return obs, rewards.astype(np.float32), dones, result
