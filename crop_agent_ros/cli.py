@@ -11,12 +11,14 @@ import sys
 
 # command -> (module, one-line help)
 COMMANDS = {
+    "farm": ("crop_agent_ros.run_farm", "the main job: sim node + agent node grow a season over ROS 2"),
     "simulate": ("crop_sim_ros.simulate", "grow one season on a scenario and summarise it (with a plot)"),
     "validate": ("crop_sim_ros.validation.cli", "run the SIMPLE reference experiments and report RRMSE"),
     "fit-weather": ("crop_sim_ros.weather.fit", "fit the weather generator's parameters to observed files"),
     "bench": ("crop_sim_ros.bench", "benchmark the model and the environment (field-days per second)"),
     "train": ("crop_agent_ros.train", "train a PPO irrigation policy (Stable-Baselines3)"),
     "evaluate": ("crop_agent_ros.evaluate", "evaluate policies on held-out seasons"),
+    "ros-bench": ("crop_agent_ros.ros_bench", "benchmark days per second through ROS 2 against bare rclpy"),
 }
 
 

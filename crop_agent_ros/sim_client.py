@@ -109,7 +109,7 @@ class SimClient:
                                                      and self._step_command.get_subscription_count() >= 1)),
                    max(0.1, deadline - time.monotonic()), what=f"the topics of {self.sim}", step=0.02)
         names = ["mode", "scenario"]
-        response = call(self.executor, self._get_parameters, GetParameters.Request(names=names), self.timeout)
+        response = self._call_idempotent(self._get_parameters, GetParameters.Request(names=names))
         values = {name: value.string_value for name, value in zip(names, response.values)}
         if values.get("mode") not in (None, "lockstep"):
             raise SimError(f"{self.sim} is in mode {values['mode']!r}: a client steps it only in lockstep mode")
@@ -137,7 +137,7 @@ class SimClient:
         request = SetParameters.Request()
         for name, value in changed.items():
             request.parameters.append(Parameter(name=name, value=_parameter_value(value)))
-        response = call(self.executor, self._set_parameters, request, self.timeout)
+        response = self._call_idempotent(self._set_parameters, request)
         for (name, value), result in zip(changed.items(), response.results):
             if not result.successful:
                 raise SimError(f"{self.sim}: parameter {name}={value!r} refused: {result.reason}")
@@ -258,6 +258,18 @@ class SimClient:
             if ack["day"] == self.day and ack["irrigation_mm"] == mm:
                 return ack
         return None
+
+    def _call_idempotent(self, client, request, attempts: int = 4):
+        """A call that may be repeated: DDS can lose a request sent right after discovery (the server's reader
+        had not matched this client's writer yet), and ROS 2 services do not resend it."""
+        per_attempt = max(self.timeout / attempts, 1.0)
+        for attempt in range(attempts):
+            try:
+                return call(self.executor, client, request, per_attempt)
+            except ServiceTimeout:
+                if attempt == attempts - 1:
+                    raise
+                self.retries += 1
 
     def _trigger(self, client) -> dict:
         response = call(self.executor, client, Trigger.Request(), self.timeout)
