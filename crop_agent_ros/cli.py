@@ -1,4 +1,6 @@
-"""``crop-sim``: one command line for every job. Each sub-command lives in its own module, which
+"""``crop-sim``: one command line for every job of the simulated farm.
+
+Each sub-command lives in its own module, which
 provides ``add_arguments(parser)`` and ``run(args) -> int``; modules load only when their command runs,
 so ``crop-sim validate`` never pays for torch or rclpy.
 """
