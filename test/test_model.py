@@ -219,7 +219,7 @@ def test_i50b_takes_the_larger_increment_not_the_sum_and_from_day_one():
     params = repeat_parameters(potato(), 1)
     state = initial_state(params)
     # Day 0: heat (TMAX 39.5 -> f_heat 0.5) and drought (ARID 1 -> f_water 0.6): increments 25 vs 12.
-    state = simple.CropState(**{**state.__dict__, "plant_available_water_mm": np.array([0.0])})
+    state = state._replace(plant_available_water_mm=np.array([0.0]))
     hot_dry = DailyWeather(np.array([39.5]), np.array([20.0]), np.array([25.0]), np.array([0.0]), np.array([8.0]))
     after_one, flux = step(params, state, hot_dry, np.array([0.0]))
     assert flux.f_heat[0] == pytest.approx(0.5)

@@ -133,7 +133,7 @@ def test_forecast_on_the_last_weather_day_is_todays_true_weather():
     scenario = noise_free("benton-2000")
     params, table = core.task_params(scenario, 1), core.scenario_table(scenario)
     last = int(table.n_days[0]) - 1
-    state = core.TaskState(replace(params.sowing_state, days_since_sowing=np.array([last])), np.array([0]))
+    state = core.TaskState(params.sowing_state._replace(days_since_sowing=np.array([last])), np.array([0]))
     obs = core.observation(params, table, state, np.random.default_rng(0))[0]
     np.testing.assert_array_equal(obs[11:19], obs[3:11])
 

@@ -25,6 +25,9 @@ mature                      bool      the crop reached maturity (or harvest); it
 maturity_day                d         the maturity day (-1 until mature)
 =========================== ========= ===========================================================
 
+State, weather and fluxes are named tuples (immutable, and cheap to build on the one-field hot path);
+parameters are a frozen dataclass.
+
 After maturity the crop state is frozen (biomass, TT, fSolar stay at their maturity-day values) while the
 soil water balance goes on, so water is conserved on every day of every field.
 """
@@ -32,6 +35,7 @@ soil water balance goes on, so water is conserved on every day of every field.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -94,8 +98,7 @@ def runoff_retention_mm(runoff_curve_number):
     return 25400.0 / runoff_curve_number - 254.0
 
 
-@dataclass(frozen=True)
-class WaterFluxes:
+class WaterFluxes(NamedTuple):
     """One day of the one-bucket water balance, mm (ARID dimensionless)."""
 
     runoff_mm: np.ndarray
@@ -221,8 +224,7 @@ def repeat_parameters(params: FieldParameters, n_fields: int) -> FieldParameters
     return stack_parameters([params] * n_fields)
 
 
-@dataclass(frozen=True)
-class DailyWeather:
+class DailyWeather(NamedTuple):
     """One day's weather for N fields (floats or arrays of shape (N,)).
 
     tmax_degc, tmin_degc: degC; srad_mj_m2: MJ m-2 d-1; rain_mm: mm; et0_mm: reference ET, mm d-1
@@ -236,8 +238,7 @@ class DailyWeather:
     et0_mm: np.ndarray
 
 
-@dataclass(frozen=True)
-class CropState:
+class CropState(NamedTuple):
     """State of N fields at the start of a day; see the module table for names and units."""
 
     days_since_sowing: np.ndarray
@@ -252,7 +253,7 @@ class CropState:
 
     def take(self, index) -> "CropState":
         """The state of the selected fields (an index array or boolean mask)."""
-        return CropState(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+        return CropState(*(value[index] for value in self))
 
 
 def harvestable_yield_kg_ha(params: FieldParameters, state: CropState):
@@ -260,8 +261,7 @@ def harvestable_yield_kg_ha(params: FieldParameters, state: CropState):
     return state.biomass_kg_ha * params.harvest_index
 
 
-@dataclass(frozen=True)
-class DailyFluxes:
+class DailyFluxes(NamedTuple):
     """What happened on one day, per field.
 
     ============================= ========= =======================================================
@@ -419,7 +419,7 @@ def scalar_parameters(params: FieldParameters, field: int = 0) -> FieldParameter
 
 def scalar_state(state: CropState, field: int = 0) -> CropState:
     """One field of ``state`` as Python scalars (int, float, bool), for ``step(..., xp=SCALAR_MATH)``."""
-    return CropState(**{f.name: getattr(state, f.name)[field].item() for f in fields(CropState)})
+    return CropState(*(value[field].item() for value in state))
 
 
 MAX_IRRIGATION_MM = 1000.0
