@@ -425,7 +425,7 @@ class SimNode(Node):
             if self._accept(list(message.data), and_step=True):
                 ok, summary = self._step(defer=True)
                 if not ok:
-                    self.get_logger().error(summary)
+                    self.get_logger().error(ri.summary_json(summary))
 
     # --- step --------------------------------------------------------------------------------------------
 
@@ -436,20 +436,23 @@ class SimNode(Node):
                                                 "mode:=lockstep to step by service", "episode": self._episode,
                                                 "day": self._day})
             return response
-        response.success, response.message = self._step(defer=True)
+        response.success, summary = self._step(defer=True)
+        response.message = ri.summary_json(summary)
         return response
 
     def _on_tick(self) -> None:
         if not self._ended:
-            ok, message = self._step()
+            ok, summary = self._step()
             if not ok:
-                self.get_logger().error(message)
+                self.get_logger().error(ri.summary_json(summary))
 
-    def _step(self, defer: bool = False) -> tuple[bool, str]:
+    def _step(self, defer: bool = False) -> tuple[bool, dict]:
+        """Advance one day; (success, summary). The summary is a dict: callers that answer a service encode
+        it (JSON costs time the topic path does not need to spend)."""
         with self._lock:
             if self._ended:
-                return False, ri.summary_json({"error": f"the season has ended ({self._end_reason}); call ~/reset",
-                                               "episode": self._episode, "day": self._day})
+                return False, {"error": f"the season has ended ({self._end_reason}); call ~/reset",
+                               "episode": self._episode, "day": self._day}
             day, obs_before = self._day, self._obs
             if self._pending is not None and self._pending[0] == day:
                 _, mm, sequence = self._pending
@@ -460,8 +463,8 @@ class SimNode(Node):
                 obs, reward, terminated, truncated, info = self._env.step(mm)
             except Exception as error:  # noqa: BLE001 - the environment refused: state unchanged
                 self.get_logger().error(f"step of day {day} failed: {error}")
-                return False, ri.summary_json({"error": f"{type(error).__name__}: {error}", "episode": self._episode,
-                                               "day": self._day})
+                return False, {"error": f"{type(error).__name__}: {error}", "episode": self._episode,
+                               "day": self._day}
             terminated, truncated, reward = bool(terminated), bool(truncated), float(reward)
             self._steps += 1
             self._obs, self._info = obs, info
@@ -489,7 +492,7 @@ class SimNode(Node):
                        "irrigation_mm": info["irrigation_applied_mm"], "reward": reward, "return": self._return,
                        "terminated": terminated, "truncated": truncated, "yield_t_ha": yield_t_ha,
                        "command_sequence": sequence, "observation": ri.observation_list(obs)}
-            return True, ri.summary_json(summary)
+            return True, summary
 
     def _log_common(self, day: int, obs: np.ndarray) -> dict:
         row = {"wall_time_utc": datetime.now(timezone.utc).isoformat(timespec="milliseconds"), "run_id": self._run_id,
