@@ -42,6 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: derived from the pid)")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds before giving up (default 600)")
     parser.add_argument("--json", action="store_true", help="print the summaries as JSON lines only")
+    parser.add_argument("--no-plot", action="store_true", help="do not draw the last season (PNG beside the log)")
 
 
 def run(args) -> int:
@@ -82,6 +83,8 @@ def run(args) -> int:
         sim_status = sim.stop()
     summaries = [json.loads(line[len(SUMMARY_PREFIX):]) for line in agent.output().splitlines()
                  if line.startswith(SUMMARY_PREFIX)]
+    if summaries and not args.no_plot:
+        plot_season_log(log, log.with_suffix(".png"))
     if args.json:
         for summary in summaries:
             print(json.dumps(summary))
@@ -94,6 +97,8 @@ def run(args) -> int:
         if summaries:
             print(f"grown over ROS 2 (sim_node + agent_node, ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}) in "
                   f"{time.monotonic() - started:.1f} s; season log {log}; node output in {workdir}")
+            if not args.no_plot:
+                print(f"plot of the last season: {log.with_suffix('.png')}")
         else:
             print(f"no season grown; node output in {workdir}", file=sys.stderr)
     if code == 0 and len(summaries) != args.seasons:
@@ -102,6 +107,45 @@ def run(args) -> int:
     if code == 0 and sim_status not in (0, None):
         print(f"sim_node stopped with status {sim_status}", file=sys.stderr)
     return code
+
+
+def plot_season_log(log: Path, png: Path) -> Path:
+    """Draw the last season of a simulator season log: true and observed biomass, true and observed PAW,
+    rain and irrigation by day. Returns ``png``."""
+    import csv
+
+    import matplotlib  # only for the picture
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with log.open(newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    last = [r for r in rows if (r["run_id"], r["episode"]) == (rows[-1]["run_id"], rows[-1]["episode"])]
+
+    def column(name: str) -> list[float]:
+        return [float(r[name]) for r in last]
+
+    day = column("day")  # observations are of the start of a day, true values of its end (day + 1)
+    end_of_day = [d + 1 for d in day]
+    figure, axes = plt.subplots(3, 1, figsize=(9, 8), sharex=True)
+    axes[0].plot(end_of_day, column("end_true_biomass_t_ha"), label="true")
+    axes[0].plot(day, column("obs_biomass_t_ha"), ".", markersize=2, label="observed (noisy)")
+    axes[0].set_ylabel("biomass, t/ha")
+    axes[1].plot(end_of_day, column("end_true_paw_mm"), label="true")
+    axes[1].plot(day, column("obs_paw_mm"), ".", markersize=2, label="observed (noisy)")
+    axes[1].set_ylabel("PAW, mm")
+    axes[2].bar(day, column("rain_mm"), color="tab:blue", label="rain")
+    axes[2].bar(day, column("irrigation_mm"), bottom=column("rain_mm"), color="tab:green", label="irrigation")
+    axes[2].set_ylabel("water, mm/day")
+    axes[2].set_xlabel(f"days after sowing ({last[0]['date']})")
+    for ax in axes:
+        ax.legend(loc="upper left")
+    axes[0].set_title(f"{last[0]['scenario']}, season {last[0]['weather_season']}: grown over ROS 2")
+    figure.tight_layout()
+    figure.savefig(png, dpi=90)
+    plt.close(figure)
+    return png
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -42,10 +42,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--eval-freq", type=int, default=250_000, help="steps between evaluations")
     parser.add_argument("--eval-seeds", type=int, default=4, help="noise seeds per evaluation")
     parser.add_argument("--validation-seasons", type=int, default=64, help="fresh generated validation seasons")
-    parser.add_argument("--action-mode", default="margin", choices=("mm", "target", "margin"))
-    parser.add_argument("--feature-set", default="full", choices=("full", "compact"))
+    parser.add_argument("--action-mode", default="margin", choices=("mm", "target", "margin", "demand"))
+    parser.add_argument("--feature-set", default="full", choices=("full", "compact", "phenology"))
     parser.add_argument("--margin-center", type=float, default=4.0, help="margin mode: mm above ET0/0.096 at a=0")
     parser.add_argument("--margin-span", type=float, default=15.0, help="margin mode: mm per unit of action")
+    parser.add_argument("--demand-span", type=float, default=1.0,
+                        help="demand mode: the level is (1 + span * a) * ET0/0.096 + margin-center")
     parser.add_argument("--learning-rate", type=float, default=1e-4)
     parser.add_argument("--final-learning-rate", type=float, default=1e-5, help="linear decay to this value")
     parser.add_argument("--n-steps", type=int, default=256, help="rollout length per field")
@@ -192,7 +194,7 @@ def train(args) -> dict:
     hyper = {k: getattr(args, k) for k in ("timesteps", "n_envs", "action_mode", "learning_rate",
                                            "final_learning_rate", "n_steps", "batch_size", "n_epochs", "gamma",
                                            "gae_lambda", "clip_range", "ent_coef", "log_std_init", "reward_shaping",
-                                           "feature_set", "margin_center", "margin_span")}
+                                           "feature_set", "margin_center", "margin_span", "demand_span")}
     hyper["net_arch"] = net_arch
 
     # evaluation sets: held-out real seasons (reported only) and fresh generated validation seasons
@@ -220,6 +222,8 @@ def train(args) -> dict:
 
     params = scenario.field_parameters()
     mapping = {"margin_center_mm": args.margin_center, "margin_span_mm": args.margin_span}
+    if args.action_mode == "demand":
+        mapping["demand_span"] = args.demand_span
     venv = feature_action_wrapper(training_vec_env(scenario, args.n_envs, args.seed), args.action_mode,
                                   args.feature_set, mapping, args.reward_shaping, args.gamma, float(params.harvest_index[0]),
                                   float(params.initial_biomass_kg_ha[0]) / 1000.0)

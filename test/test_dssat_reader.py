@@ -21,7 +21,10 @@ def write(tmp_path, body: str) -> Path:
     return path
 
 
-@pytest.mark.skipif(not WEATHER_FILES, reason="shared SIMPLE input set not available")
+def test_the_shared_weather_folder_is_there(shared_data):
+    assert len(WEATHER_FILES) == 54  # every file below is read by the next test
+
+
 @pytest.mark.parametrize("path", WEATHER_FILES, ids=lambda p: p.name)
 def test_every_shared_weather_file_reads(path):
     series = read_dssat_wth(path)
@@ -30,7 +33,7 @@ def test_every_shared_weather_file_reads(path):
     assert np.isfinite(series.tmax_degc).mean() > 0.25
 
 
-@pytest.mark.skipif(not WEATHER_FILES, reason="shared SIMPLE input set not available")
+@pytest.mark.usefixtures("shared_data")
 def test_blocks_out_of_order_are_sorted_and_keep_their_lines():
     series = read_dssat_wth(DATA / "simple_r_inputs" / "Weather" / "AUHU9801.WTH")
     assert str(series.start) == "1997-12-31" and str(series.end) == "1999-12-31"
@@ -38,7 +41,7 @@ def test_blocks_out_of_order_are_sorted_and_keep_their_lines():
     assert series.tmax_degc[0] == pytest.approx(-0.1)
 
 
-@pytest.mark.skipif(not WEATHER_FILES, reason="shared SIMPLE input set not available")
+@pytest.mark.usefixtures("shared_data")
 def test_blank_fixed_width_cells_are_missing_values():
     series = read_dssat_wth(DATA / "simple_r_inputs" / "Weather" / "BDIS8103.WTH")
     assert np.isfinite(series.tmax_degc).all()

@@ -18,7 +18,6 @@ from std_srvs.srv import Trigger  # noqa: E402
 
 from crop_agent_ros.ros_client import PrivateRos, call, wait_for_service  # noqa: E402
 from crop_agent_ros.ros_process import NodeProcess, isolated_ros_env  # noqa: E402
-from crop_agent_ros.policies.sb3 import SHIPPED_PPO  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
 
 pytestmark = pytest.mark.slow
@@ -53,8 +52,6 @@ def test_reactive_agent_commands_every_day(tmp_path):
 
 @pytest.mark.parametrize("policy", ["refill", "ppo"])
 def test_run_farm_grows_a_season_over_ros(tmp_path, policy):
-    if policy == "ppo" and not SHIPPED_PPO.exists():
-        pytest.skip(f"{SHIPPED_PPO} is not shipped yet")
     log = tmp_path / "season.csv"
     done = subprocess.run([sys.executable, "-m", "crop_agent_ros.run_farm", "--policy", policy, "--json",
                            "--log", str(log), "--domain-id", str(isolated_ros_env()["ROS_DOMAIN_ID"])],
@@ -66,3 +63,4 @@ def test_run_farm_grows_a_season_over_ros(tmp_path, policy):
     rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == summary["episode"]]
     assert len(rows) == summary["days"]
     assert sum(float(r["irrigation_mm"]) for r in rows) == pytest.approx(summary["irrigation_mm"], rel=1e-12)
+    assert log.with_suffix(".png").stat().st_size > 10_000  # the plot of the season

@@ -6,8 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip("rclpy")
-
 import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exists)
 
 from crop_agent_ros.bridge import RosIrrigationEnv  # noqa: E402
@@ -87,13 +85,9 @@ def test_chosen_weather_season(bridge):
         bridge.step(np.array([np.nan]))
 
 
-def test_bridge_on_a_real_weather_scenario(tmp_path):
-    """The paper's season (AgWeatherNet Benton E. 2000), when the shared data are present: the simulator
-    switches scenario at reset."""
-    try:
-        offline = IrrigationEnv("benton-2000")
-    except (FileNotFoundError, KeyError) as error:
-        pytest.skip(f"benton-2000 needs ../shared/data: {error}")
+def test_bridge_on_a_real_weather_scenario(tmp_path, shared_data):
+    """The paper's season (AgWeatherNet Benton E. 2000): the simulator switches scenario at reset."""
+    offline = IrrigationEnv("benton-2000")
     process, name, _ = ros_support.start_sim(tmp_path)
     try:
         env = RosIrrigationEnv(sim_node=name, scenario="benton-2000")

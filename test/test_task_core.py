@@ -16,7 +16,7 @@ from crop_sim_ros.weather.readers import dssat_date, read_agweathernet_reference
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 BENTON_FILE = DATA / "agweathernet" / "benton_e_2000-04-01_2000-09-30.csv"
-needs_data = pytest.mark.skipif(not DATA.is_dir(), reason="shared data directory absent")
+needs_data = pytest.mark.usefixtures("shared_data")  # fails, never skips, without the data
 
 
 def noise_free(name: str) -> Scenario:

@@ -29,7 +29,7 @@ from crop_sim_ros.validation.inputs import read_irrigation
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 INPUTS = DATA / "simple_r_inputs"
-needs_inputs = pytest.mark.skipif(not INPUTS.is_dir(), reason="shared SIMPLE input set not available")
+needs_inputs = pytest.mark.usefixtures("shared_data")  # fails, never skips, without the data
 
 # (source, --all) -> measured overall RRMSE % and n: biomass, yield, fSolar.
 MEASURED = {

@@ -18,6 +18,15 @@ Action mapping (:func:`action_to_mm`), ``mode``:
   "demand + 4 mm" rule (``DemandMarginPolicy`` in :mod:`crop_agent_ros.policies.rules`); PPO learns a
   state-dependent correction of it. Most of the skill of the shipped policy comes from this design (the
   ET0 estimate and the no-stress level are agronomy, not learning): evaluate ``margin4`` beside ``ppo``.
+- ``demand``: L = (1 + DEMAND_SPAN * a) * ET0 / 0.096 + m0 (m0 = ``margin_center_mm``): the network scales
+  the no-stress level. a = 0 is again the ``margin4`` rule, but with the default span of 1 the action
+  reaches "no irrigation" (a = -1: L = m0, below any useful PAW), e.g. late in the season when the canopy
+  has senesced; the ``margin`` mode cannot (its lowest level is ET0/0.096 - 11 mm).
+
+Feature sets: ``full`` (the 23 features above), ``compact`` (9 of them) and ``phenology`` (``full`` plus
+two phenology features: thermal time as a fraction of the cultivar's Tsum, and the progress of canopy
+senescence, (TT - (Tsum - I50B)) / I50B clipped to [-1, 1.5], with Russet Burbank's Tsum = 2300 and
+I50B = 400 degC d).
 
 Either way the policy is a function of the observation alone and returns mm in [0, 100].
 """
@@ -39,7 +48,8 @@ TARGET_HIGH_MM = 140.0
 # see the tuning notes in the module docstring); a = 0 (an untrained network) is that fixed-margin rule.
 MARGIN_CENTER_MM = 4.0
 MARGIN_SPAN_MM = 15.0
-ACTION_MODES = ("mm", "target", "margin")
+ACTION_MODES = ("mm", "target", "margin", "demand")
+DEMAND_SPAN = 1.0
 FEATURE_VERSION = 2
 # Benton County, WA (the scenarios' site: AgWeatherNet Benton E. and Paterson), and the day of year of an
 # early-April sowing: used only to estimate ET0 from the observation.
@@ -47,6 +57,9 @@ SITE_LATITUDE_DEG = 46.2
 SITE_ELEVATION_M = 200.0
 SOWING_DAY_OF_YEAR = 95
 N_FEATURES = 23
+# Russet Burbank (SIMPLE Table 1a), for the phenology features only
+CULTIVAR_TSUM_DEGC_D = 2300.0
+CULTIVAR_I50B_DEGC_D = 400.0
 
 HERE = Path(__file__).resolve().parent
 SHIPPED_PPO = HERE / "ppo_benton.zip"
@@ -75,7 +88,7 @@ def _demand_level_mm(obs: np.ndarray, tomorrow: bool = False) -> np.ndarray:
 
 # the "compact" feature set: biomass, TT, days, today's rain, forecast rain, PAW, and the three derived values
 COMPACT = (0, 1, 2, 6, 14, 19, 20, 21, 22)
-FEATURE_SETS = {"full": N_FEATURES, "compact": len(COMPACT)}
+FEATURE_SETS = {"full": N_FEATURES, "compact": len(COMPACT), "phenology": N_FEATURES + 2}
 
 
 def features(obs: np.ndarray, feature_set: str = "full") -> np.ndarray:
@@ -86,6 +99,11 @@ def features(obs: np.ndarray, feature_set: str = "full") -> np.ndarray:
         return full
     if feature_set == "compact":
         return np.ascontiguousarray(full[:, COMPACT])
+    if feature_set == "phenology":
+        tt = np.atleast_2d(np.asarray(obs, dtype=float))[:, 1]
+        fraction = tt / CULTIVAR_TSUM_DEGC_D
+        senescence = np.clip((tt - (CULTIVAR_TSUM_DEGC_D - CULTIVAR_I50B_DEGC_D)) / CULTIVAR_I50B_DEGC_D, -1.0, 1.5)
+        return np.concatenate([full, np.stack([fraction, senescence], axis=1).astype(np.float32)], axis=1)
     raise ValueError(f"unknown feature set {feature_set!r}; known: {', '.join(FEATURE_SETS)}")
 
 
@@ -103,7 +121,7 @@ def _full_features(obs: np.ndarray) -> np.ndarray:
 
 
 def action_to_mm(action: np.ndarray, obs: np.ndarray, mode: str, margin_center_mm: float = MARGIN_CENTER_MM,
-                 margin_span_mm: float = MARGIN_SPAN_MM) -> np.ndarray:
+                 margin_span_mm: float = MARGIN_SPAN_MM, demand_span: float = DEMAND_SPAN) -> np.ndarray:
     """Network action(s) in [-1, 1] -> irrigation mm in [0, 100] (see the module docstring)."""
     a = np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0)
     obs = np.atleast_2d(np.asarray(obs, dtype=float))
@@ -115,6 +133,9 @@ def action_to_mm(action: np.ndarray, obs: np.ndarray, mode: str, margin_center_m
     if mode == "margin":
         margin = margin_center_mm + margin_span_mm * a
         level = _demand_level_mm(obs) + margin
+        return np.clip(level - obs[:, PAW_MM] - obs[:, TODAY_RAIN_MM], 0.0, ACTION_HIGH_MM)
+    if mode == "demand":
+        level = (1.0 + demand_span * a) * _demand_level_mm(obs) + margin_center_mm
         return np.clip(level - obs[:, PAW_MM] - obs[:, TODAY_RAIN_MM], 0.0, ACTION_HIGH_MM)
     raise ValueError(f"unknown action mode {mode!r}; known: {', '.join(ACTION_MODES)}")
 
