@@ -204,3 +204,25 @@ def test_evaluate_table_on_a_tiny_run(tmp_path):
     table = format_table(summary)
     assert "constant10" in table and "regret" in table
     assert episodes["zero"][0].daily["paw_mm"].shape[1] == 1
+
+
+@pytest.mark.parametrize("mode", ["mm", "target", "margin", "demand"])
+@pytest.mark.parametrize("feature_set", ["full", "compact", "phenology"])
+def test_every_action_mode_and_feature_set_is_well_formed(mode, feature_set):
+    from crop_agent_ros.policies.sb3 import FEATURE_SETS, action_to_mm, features
+
+    obs = np.stack([observation(paw=p, today_rain=r) for p, r in ((0, 0), (60, 30), (150, 0))])
+    x = features(obs, feature_set)
+    assert x.shape == (3, FEATURE_SETS[feature_set]) and np.all(np.isfinite(x))
+    for action in (-1.0, 0.0, 1.0):
+        mm = action_to_mm(np.full((3, 1), action, dtype=np.float32), obs, mode)
+        assert mm.shape == (3,) and np.all((mm >= 0) & (mm <= 100))
+    # More water in the soil never asks for more irrigation.
+    mm = action_to_mm(np.zeros((2, 1), dtype=np.float32), obs[[0, 2]], mode)
+    assert mm[0] >= mm[1]
+
+
+def test_demand_mode_can_stop_irrigating():
+    from crop_agent_ros.policies.sb3 import action_to_mm
+
+    assert action_to_mm(np.array([[-1.0]], dtype=np.float32), observation(paw=10.0)[None], "demand")[0] == 0
