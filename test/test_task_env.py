@@ -264,3 +264,17 @@ def test_task_layer_imports_neither_torch_nor_rclpy():
     result = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).resolve().parents[1],
                             capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_prefetched_noise_is_the_plain_stream_whatever_the_threads():
+    from crop_sim_ros.task.vector_env import PrefetchedNormal
+
+    rows = PrefetchedNormal.MIN_ROWS_TO_PREFETCH
+    for n in (rows, rows - 1):  # prefetched on the worker thread, and drawn in place
+        noise = PrefetchedNormal(7, n, 10)
+        plain = np.random.Generator(np.random.SFC64(7))
+        first, second = noise.standard_normal((n, 10)), noise.standard_normal((3, 10))  # a partial block
+        np.testing.assert_array_equal(first, plain.standard_normal((n, 10), np.float32))
+        np.testing.assert_array_equal(second, plain.standard_normal((n, 10), np.float32)[:3])
+    with pytest.raises(ValueError, match="noise of shape"):
+        noise.standard_normal((n + 1, 10))

@@ -9,9 +9,9 @@ field, ignores its action and returns reward 0) or ``AutoresetMode.SAME_STEP`` (
 the new season's first observation; the final one is in ``infos["final_obs"]``, an (N, 20) array valid
 where ``infos["_final_obs"]``, and the final infos in ``infos["final_info"]``).
 
-Randomness: one generator for all fields (``reset(seed=...)``; the observation noise from two SFC64
-streams seeded by it, see :class:`TwoStreamNormal`): the same seed and actions give the same batch, bit
-for bit. Without observation noise, field i equals a single ``IrrigationEnv`` on the same
+Randomness: one generator for all fields (``reset(seed=...)``; the observation noise from an SFC64 stream
+seeded by it and drawn a step ahead, see :class:`PrefetchedNormal`): the same seed and actions give the
+same batch, bit for bit. Without observation noise, field i equals a single ``IrrigationEnv`` on the same
 season with the same actions; with noise it draws from the shared stream instead of its own.
 
 ``infos``: arrays of shape (N,) (each with its ``_key`` mask, all True): ``day``, ``season`` (index into
@@ -25,7 +25,8 @@ season with the same actions; with noise it draws from the shared stream instead
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
+import os
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -39,32 +40,43 @@ from . import core
 from .scenario import Scenario, get_scenario
 
 
-class TwoStreamNormal:
-    """Standard normal draws for the observation noise, the rows split between two SFC64 streams that fill
-    on two threads (numpy releases the GIL while it fills an array).
+class PrefetchedNormal:
+    """Standard normal float32 draws for the observation noise, made one step ahead on a worker thread.
 
-    Ten normals per field and day are most of a batched step's cost. Deterministic: for a given seed and
-    sequence of shapes, the first half of the rows always comes from stream 0 and the rest from stream 1,
-    whatever the threads' timing. SFC64 is about 30 % faster than numpy's default PCG64.
+    Ten normals per field and day are the largest single cost of a batched step; numpy releases the GIL
+    while it fills an array, so the next step's block is drawn while this step's model and bookkeeping
+    run. Every call consumes exactly one block of ``(rows, columns)`` from one SFC64 stream (about 30 %
+    faster than numpy's default PCG64) and returns its first ``shape[0]`` rows, so the values depend only
+    on the seed and the sequence of calls, never on the threads' timing. Below ``MIN_ROWS_TO_PREFETCH``
+    rows the hand-off costs more than it saves, and blocks are drawn in place (the same values).
     """
 
-    MIN_ROWS_TO_SPLIT = 2048
+    MIN_ROWS_TO_PREFETCH = 2048
     _executor: ThreadPoolExecutor | None = None
+    _executor_pid = -1  # a forked child (e.g. SB3's SubprocVecEnv) needs its own worker thread
 
-    def __init__(self, seed: int):
-        self._streams = [np.random.Generator(np.random.SFC64(s)) for s in np.random.SeedSequence(seed).spawn(2)]
+    def __init__(self, seed: int, rows: int, columns: int):
+        self._stream = np.random.Generator(np.random.SFC64(seed))
+        self._shape = (rows, columns)
+        self._next: Future | None = None
+        if rows >= self.MIN_ROWS_TO_PREFETCH:
+            if PrefetchedNormal._executor_pid != os.getpid():
+                PrefetchedNormal._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="noise")
+                PrefetchedNormal._executor_pid = os.getpid()
+            self._next = self._submit()
+
+    def _submit(self) -> Future:
+        return PrefetchedNormal._executor.submit(self._stream.standard_normal, self._shape, np.float32)
 
     def standard_normal(self, shape: tuple[int, ...], dtype=np.float32) -> np.ndarray:
-        out = np.empty(shape, dtype)
-        if out.shape[0] < self.MIN_ROWS_TO_SPLIT:
-            return self._streams[0].standard_normal(out=out, dtype=dtype)
-        if TwoStreamNormal._executor is None:
-            TwoStreamNormal._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="noise")
-        half = out.shape[0] // 2
-        second = TwoStreamNormal._executor.submit(self._streams[1].standard_normal, out=out[half:], dtype=dtype)
-        self._streams[0].standard_normal(out=out[:half], dtype=dtype)
-        second.result()
-        return out
+        if dtype != np.float32 or len(shape) != 2 or shape[1] != self._shape[1] or shape[0] > self._shape[0]:
+            raise ValueError(f"noise of shape {shape} ({np.dtype(dtype)}) from blocks of {self._shape} float32")
+        if self._next is None:
+            block = self._stream.standard_normal(self._shape, np.float32)
+        else:
+            block = self._next.result()
+            self._next = self._submit()
+        return block[:shape[0]]
 
 
 class IrrigationVectorEnv(VectorEnv):
@@ -100,7 +112,8 @@ class IrrigationVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        self._noise_rng = TwoStreamNormal(int(self.np_random.integers(2**63)))
+        self._noise_rng = PrefetchedNormal(int(self.np_random.integers(2**63)), self.num_envs,
+                                           len(self.params.noise_std))
         options = dict(options or {})
         weathers = options.pop("weathers", None)
         season = options.pop("season", None)
