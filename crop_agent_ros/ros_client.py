@@ -3,7 +3,7 @@
 Measured on rclpy 7.1.6: ``rclpy.spin_until_future_complete`` leaves tasks behind and slows down with
 every call, so service calls here use ``call_async`` and spin the caller's own executor with
 ``spin_once`` until the future is done. Discovery of a fresh peer can take 2-3 s: wait for services and
-publishers (``wait_for_service``, ``wait_for_publishers``), never a fixed sleep.
+subscribers (``wait_for_service``, ``wait_for_subscribers``), never a fixed sleep.
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ import time
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 
 
 class ServiceTimeout(TimeoutError):
@@ -45,11 +44,6 @@ def call(executor, client, request, timeout: float = 10.0):
 def wait_for_service(executor, client, timeout: float = 15.0) -> None:
     """Spin while waiting for a service server to be discovered."""
     spin_until(executor, client.service_is_ready, timeout, what=f"service {client.srv_name}", step=0.02)
-
-
-def wait_for_publishers(executor, node: Node, topic: str, timeout: float = 15.0, count: int = 1) -> None:
-    spin_until(executor, lambda: node.count_publishers(topic) >= count, timeout,
-               what=f"a publisher on {topic}", step=0.02)
 
 
 def wait_for_subscribers(executor, publisher, timeout: float = 15.0, count: int = 1) -> None:

@@ -20,7 +20,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -261,11 +260,3 @@ class NodeProcess:
     def __exit__(self, *exc) -> None:
         self.stop()
 
-
-def wait_until(condition, timeout: float, interval: float = 0.02, what: str = "condition") -> None:
-    """Poll ``condition()`` until true, else TimeoutError naming ``what``."""
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"timed out after {timeout:.1f} s waiting for {what}")
-        time.sleep(interval)

@@ -215,7 +215,7 @@ def train(args) -> dict:
         return ret, norm, float(np.mean([r.water_mm for r in runs]))
 
     r_ref, n_ref, _ = score(refill, heldout, heldout_contexts)
-    v_ref, vn_ref, _ = score(refill, validation)
+    v_ref, _, _ = score(refill, validation)
     baseline = {"heldout_refill_return": float(r_ref.mean()), "heldout_refill_normalized_return": float(n_ref.mean()),
                 "heldout_refill_regret": float((heldout_oracle - r_ref).mean()),
                 "validation_refill_return": float(v_ref.mean())}
@@ -272,10 +272,9 @@ def train(args) -> dict:
             if vret.mean() > best["validation_return"]:
                 best.update(validation_return=float(vret.mean()), timesteps=int(self.num_timesteps))
                 self.model.save(out / "best_validation_model.zip")
-            if self.verbose or True:
-                print(f"[{row['timesteps']:>9}] {row['wall_s']:>7.1f} s  validation - refill "
-                      f"{row['validation_minus_refill']:+.4f}  held-out regret {row['heldout_regret']:.4f} "
-                      f"(refill {baseline['heldout_refill_regret']:.4f})", file=sys.stderr, flush=True)
+            print(f"[{row['timesteps']:>9}] {row['wall_s']:>7.1f} s  validation - refill "
+                  f"{row['validation_minus_refill']:+.4f}  held-out regret {row['heldout_regret']:.4f} "
+                  f"(refill {baseline['heldout_refill_regret']:.4f})", file=sys.stderr, flush=True)
 
     callback = Curve()
     model.learn(total_timesteps=args.timesteps, callback=callback, progress_bar=not args.no_progress)

@@ -263,13 +263,11 @@ class SimNode(Node):
         self._end_reason = "no season yet"
         self._return = 0.0
         self._obs: np.ndarray | None = None
-        self._info: dict = {}
         self._seed_used: int | None = None
         self._info_season = -1
         self._sowing: date = date(2000, 1, 1)
         self._pending: tuple[int, float, int] | None = None  # (day, mm, sequence)
         self._sequence = 0
-        self._steps = 0
 
         # publishers (messages reused: publish() serialises at once)
         self._pub_obs = self.create_publisher(Float32MultiArray, "~/" + ri.OBSERVATION_TOPIC, ri.STATE_QOS)
@@ -466,8 +464,7 @@ class SimNode(Node):
                 return False, {"error": f"{type(error).__name__}: {error}", "episode": self._episode,
                                "day": self._day}
             terminated, truncated, reward = bool(terminated), bool(truncated), float(reward)
-            self._steps += 1
-            self._obs, self._info = obs, info
+            self._obs = obs
             self._day = int(info["day"])
             self._return = float(info["episode_return"])
             if terminated or truncated:
@@ -534,7 +531,7 @@ class SimNode(Node):
                 self._log, self._log_path = log, log_path
             self._episode += 1
             self._seed_used = seed if seed >= 0 else None
-            self._obs, self._info = obs, info
+            self._obs = obs
             self._info_season = info["season"]
             self._day = int(info["day"])
             self._sowing = date.fromisoformat(info["date"])

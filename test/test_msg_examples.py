@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 import yaml
 
-import rclpy  # noqa: E402  (a dependency: a missing rclpy fails, never skips)
 
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 

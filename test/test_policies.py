@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from crop_agent_ros.policies import (ConstantPolicy, Policy, RefillPolicy, ZeroPolicy, make_policy)
-from crop_agent_ros.policies.base import (FORECAST_RAIN_MM, OBS_SIZE, PAW_MM, TODAY_RAIN_MM, SeasonContext)
+from crop_agent_ros.policies.base import (OBS_SIZE, SeasonContext)
 
 
 def observation(paw=60.0, today_rain=0.0, forecast_rain=0.0, day=50):

@@ -29,19 +29,6 @@ MARGIN_GRID_MM = (0, 1, 2, 3, 4, 5, 6, 8, 10, 12, 15)
 MARGIN_FILE = REFILL_FILE.with_name("demand_margin_benton.json")
 
 
-class _PerField:
-    """A batch policy whose i-th observation row is handled by the i-th grid point's rule."""
-
-    def __init__(self, policy, n_seasons):
-        self.policy, self.n_seasons = policy, n_seasons
-
-    def reset(self, seed=None):
-        self.policy.reset(seed)
-
-    def act(self, obs):
-        return self.policy.act(obs)
-
-
 def _grid_scores(make, grid: list, scenario, seasons: np.ndarray, seed: int) -> np.ndarray:
     """Mean return of each grid point over ``seasons`` (one batched run)."""
     g, m = len(grid), len(seasons)
