@@ -296,6 +296,19 @@ def reward(params: TaskParams, state: TaskState, irrigation_mm: np.ndarray, next
     return params.irrigation_cost_per_mm * irrigation_mm + xp.where(harvest, yield_t_ha, 0.0)
 
 
+def crop_info(params: TaskParams, crop: CropState) -> dict:
+    """The true crop state as ``info`` entries (d, t/ha, mm, degC d), for one field (scalars) or N (arrays)."""
+    return {
+        "day": crop.days_since_sowing,
+        "true_biomass_t_ha": crop.biomass_kg_ha / KG_PER_T,
+        "true_paw_mm": crop.plant_available_water_mm,
+        "thermal_time_degc_d": crop.thermal_time_degc_d,
+        "fsolar": crop.fsolar,
+        "yield_t_ha": harvestable_yield_kg_ha(params.fields, crop) / KG_PER_T,
+        "mature": crop.mature,
+    }
+
+
 def terminal(state: TaskState) -> np.ndarray:
     """The field's crop reached maturity (or harvest)."""
     return state.crop.mature

@@ -9,7 +9,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from ..model import harvestable_yield_kg_ha
 from ..model.simple import SCALAR_MATH
 from ..weather import WeatherSeries
 from . import core
@@ -198,15 +197,4 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def _state_info(self) -> dict[str, Any]:
         crop = self._state.crop
-        day = crop.days_since_sowing
-        return {
-            "day": day,
-            "date": self._dates[day],
-            "true_biomass_t_ha": crop.biomass_kg_ha / core.KG_PER_T,
-            "true_paw_mm": crop.plant_available_water_mm,
-            "thermal_time_degc_d": crop.thermal_time_degc_d,
-            "fsolar": crop.fsolar,
-            "yield_t_ha": harvestable_yield_kg_ha(self._one.fields, crop) / core.KG_PER_T,
-            "mature": crop.mature,
-            **self._season_info,
-        }
+        return {**core.crop_info(self._one, crop), "date": self._dates[crop.days_since_sowing], **self._season_info}

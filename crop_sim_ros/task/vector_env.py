@@ -35,7 +35,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..model import DailyFluxes, harvestable_yield_kg_ha
+from ..model import DailyFluxes
 from . import core
 from .scenario import Scenario, get_scenario
 
@@ -192,16 +192,9 @@ class IrrigationVectorEnv(VectorEnv):
         return core.restart(self.params, state, mask, season)
 
     def _state_infos(self, state: core.TaskState) -> dict[str, np.ndarray]:
-        crop = state.crop
         values = {
-            "day": crop.days_since_sowing,
+            **core.crop_info(self.params, state.crop),
             "season": state.season,
-            "true_biomass_t_ha": crop.biomass_kg_ha / core.KG_PER_T,
-            "true_paw_mm": crop.plant_available_water_mm,
-            "thermal_time_degc_d": crop.thermal_time_degc_d,
-            "fsolar": crop.fsolar,
-            "yield_t_ha": harvestable_yield_kg_ha(self.params.fields, crop) / core.KG_PER_T,
-            "mature": crop.mature,
             "potential_yield_t_ha": self._table.potential_yield_t_ha[state.season],
             "episode_return": self._returns.copy(),
         }
