@@ -37,6 +37,13 @@ def _grid_scores(make, grid: list, scenario, seasons: np.ndarray, seed: int) -> 
     return episodes.episode_return.reshape(g, m).mean(axis=1)
 
 
+def _best_of(key: str, grid: list, scores: np.ndarray) -> dict:
+    """The best value of a one-parameter grid under ``key``, its mean return, and every grid point's."""
+    best = int(np.argmax(scores))
+    return {key: float(grid[best]), "mean_return": float(scores[best]),
+            "grid": {f"{v:g}": float(s) for v, s in zip(grid, scores)}}
+
+
 def tune_constant(scenario, seasons, seed: int = 0) -> dict:
     grid = list(CONSTANT_GRID_MM)
 
@@ -46,10 +53,7 @@ def tune_constant(scenario, seasons, seed: int = 0) -> dict:
                 return np.repeat(np.asarray(grid, dtype=float), m)
         return Batch(0.0, name="grid")
 
-    scores = _grid_scores(make, grid, scenario, seasons, seed)
-    best = int(np.argmax(scores))
-    return {"mm_per_day": float(grid[best]), "mean_return": float(scores[best]),
-            "grid": {f"{v:g}": float(s) for v, s in zip(grid, scores)}}
+    return _best_of("mm_per_day", grid, _grid_scores(make, grid, scenario, seasons, seed))
 
 
 def tune_margin(scenario, seasons, seed: int = 0) -> dict:
@@ -64,10 +68,7 @@ def tune_margin(scenario, seasons, seed: int = 0) -> dict:
                                     margin_center_mm=np.repeat(np.asarray(grid, dtype=float), m))
         return Batch(0.0, name="grid")
 
-    scores = _grid_scores(make, grid, scenario, seasons, seed)
-    best = int(np.argmax(scores))
-    return {"margin_mm": float(grid[best]), "mean_return": float(scores[best]),
-            "grid": {f"{v:g}": float(s) for v, s in zip(grid, scores)}}
+    return _best_of("margin_mm", grid, _grid_scores(make, grid, scenario, seasons, seed))
 
 
 def tune_refill(scenario, seasons, seed: int = 0) -> dict:
