@@ -1,7 +1,7 @@
 """``crop-sim validate``: run the SIMPLE reference treatments and report RRMSE against the observations.
 
     crop-sim validate --inputs ../shared/data/simple_r_inputs --out sim.csv --summary-json summary.json \
-        [--params zhao2019|simple_r] [--all]
+        [--params zhao2019|simple_r] [--all] [--irrigation-rows reference|attributed]
 
 Prints per crop and overall n and RRMSE (%) of biomass, yield and fSolar beside Zhao et al. (2019)
 Table 3, writes the JSON summary and the daily simulated series (one CSV row per treatment and day).
@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ..model.parameters import PARAMETER_SOURCES, UnknownNameError
 from ..weather.series import WeatherError
-from .inputs import InputError, read_observations, read_treatments
+from .inputs import IRRIGATION_ROWS, InputError, read_observations, read_treatments
 from .report import OVERALL, PAPER_TABLE3_RRMSE_PERCENT, VARIABLES, compare
 from .runner import SERIES_COLUMNS, TreatmentRun, run_treatments, select_treatments
 
@@ -35,6 +35,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="parameter source: the paper's Tables 1a/1b or the R distribution's tables")
     parser.add_argument("--all", action="store_true",
                         help="run every treatment with observations, not only those switched on")
+    parser.add_argument("--irrigation-rows", choices=IRRIGATION_ROWS, default=IRRIGATION_ROWS[0],
+                        help="reference: Irrigation.csv rows irrigate the treatments of their species and "
+                             "experiment, as the reference R code reads them; attributed: also give the "
+                             "'wheat1,UFGA7801' row to soybean UFGA7801 and the 'soybean,OHWO8801' rows to "
+                             "experiment OHWO (see validation/inputs.py)")
 
 
 def write_series_csv(path: Path, runs: list[TreatmentRun]) -> None:
@@ -77,14 +82,15 @@ def run(args: argparse.Namespace) -> int:
         observations = read_observations(args.inputs)
         observed = {(o.crop, o.experiment, o.treatment) for o in observations}
         selected = select_treatments(treatments, observed, args.all)
-        runs = run_treatments(args.inputs, selected, args.params, treatments)
+        runs = run_treatments(args.inputs, selected, args.params, treatments, args.irrigation_rows)
     except (InputError, UnknownNameError, WeatherError, FileNotFoundError) as error:
         print(f"crop-sim validate: {error}", file=sys.stderr)
         return 2
     comparison = compare(runs, observations)
     rrmse = comparison.rrmse()
     print(f"SIMPLE validation, parameters {args.params}, {len(runs)} treatments "
-          f"({'all with observations' if args.all else 'switched on'}); RRMSE = 100 RMSE / mean(observed)")
+          f"({'all with observations' if args.all else 'switched on'}), Irrigation.csv rows read as "
+          f"{args.irrigation_rows}; RRMSE = 100 RMSE / mean(observed)")
     print(format_table(rrmse))
     if comparison.date_mismatches:
         print(f"{len(comparison.date_mismatches)} observations whose Date disagrees with sowing + DAP "
@@ -93,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
     summary = {
         "parameter_source": args.params,
         "run_all_observed": args.all,
+        "irrigation_rows": args.irrigation_rows,
         "treatments": [t.treatment.name for t in runs],
         "not_matured": [t.treatment.name for t in runs if not t.matured],
         "rrmse": {crop: {_LABELS[v]: {"rrmse_percent": _json_number(e["rrmse_percent"]), "n": e["n"]}

@@ -7,11 +7,17 @@ Decisions on the set's irregularities (each checked against the files):
   off (0): a treatment runs if any of its rows switches it on. Its water-stress switch (``Water`` yes/no)
   comes from the switching-on rows (from all its rows when ``--all`` runs a treatment that no row switches
   on); rows that disagree are an error. A treatment without a row there has water stress on.
-- ``Irrigation.csv`` spells crops loosely: names go through :func:`canonical_crop` ("wheat1" -> "wheat",
-  "grbean" -> "greenbean"). A row whose crop has no experiment of that name but whose experiment belongs
-  to exactly one crop is that crop's ("wheat1,UFGA7801" sits among the soybean UFGA7801 rows, and no
-  wheat experiment UFGA7801 exists). A row whose experiment is no experiment of its crop but is the
-  weather file of exactly one (soybean "OHWO8801" for experiment OHWO, 1988) belongs to that experiment.
+- ``Irrigation.csv`` rows are read as the reference implementation reads them (``irrigation_rows=
+  "reference"``, the default): a row irrigates the treatments whose species and experiment are the row's
+  (crop names through :func:`canonical_crop` on both sides, which changes no match in this set). Two groups
+  of rows match nothing and are dropped: ``wheat1,UFGA7801,1,78235,13`` (no wheat experiment UFGA7801) and
+  the 18 ``soybean,OHWO8801,1`` rows (595 mm; OHWO8801 is experiment OHWO's weather file, not an
+  experiment). ``irrigation_rows="attributed"`` is our reading of the same rows: a row whose crop has no
+  experiment of that name but whose experiment belongs to exactly one crop is that crop's ("wheat1" sits
+  among the soybean UFGA7801 rows), and a row whose experiment is the weather file of exactly one
+  experiment of its crop belongs to that experiment. It gives soybean UFGA7801/1 13 mm more (final
+  biomass +5.8 %, maturity 2 days later) and soybean OHWO/1 595 mm (PAW up to 320 mm higher, growth
+  unchanged).
 - Several ``Irrigation.csv`` rows on one day add up (DSSAT's convention: each row is an application;
   the HSCE0701 wheat treatments have two applications on many days). This includes the few rows that
   repeat a day with the same amount (soybean UFGA8401 before sowing, tomato UFBR9401 day 94113).
@@ -37,6 +43,8 @@ TREATMENT_FILE = Path("Input") / "Treatment.csv"
 MANAGEMENT_FILE = Path("Input") / "Simulation Management.csv"
 IRRIGATION_FILE = Path("Input") / "Irrigation.csv"
 OBSERVATION_DIR = Path("Observation")
+# How Irrigation.csv rows find their treatment (see the module docstring); the first is the default.
+IRRIGATION_ROWS = ("reference", "attributed")
 WEATHER_DIR = Path("Weather")
 
 
@@ -178,10 +186,14 @@ def read_treatments(inputs_dir: str | Path) -> list[Treatment]:
     return treatments
 
 
-def read_irrigation(inputs_dir: str | Path, treatments: list[Treatment]) -> dict[tuple[str, str, int], dict[date, float]]:
-    """Irrigation, mm per day, keyed by (crop, experiment, irrigation treatment) of ``treatments``
-    (see the module docstring for how loosely named rows are matched). Rows that match no treatment's
-    experiment are left out."""
+def read_irrigation(inputs_dir: str | Path, treatments: list[Treatment],
+                    irrigation_rows: str = "reference") -> dict[tuple[str, str, int], dict[date, float]]:
+    """Irrigation, mm per day, keyed by (crop, experiment, irrigation treatment) of ``treatments``.
+    ``irrigation_rows`` (one of :data:`IRRIGATION_ROWS`, see the module docstring) says how a row finds
+    its treatment; rows that match no treatment's experiment are left out."""
+    if irrigation_rows not in IRRIGATION_ROWS:
+        raise InputError(f"irrigation_rows must be one of {', '.join(IRRIGATION_ROWS)}, got {irrigation_rows!r}")
+    attributed = irrigation_rows == "attributed"
     path = Path(inputs_dir) / IRRIGATION_FILE
     experiments = {(t.crop, t.experiment) for t in treatments}
     crops_of_experiment = defaultdict(set)
@@ -193,9 +205,10 @@ def read_irrigation(inputs_dir: str | Path, treatments: list[Treatment]) -> dict
     for line, row in _rows(path):
         crop = canonical_crop(_field(row, "Species", path, line))
         experiment = _field(row, "Exp", path, line)
-        if (crop, experiment) not in experiments and len(crops_of_experiment[experiment]) == 1:
+        if attributed and (crop, experiment) not in experiments and len(crops_of_experiment[experiment]) == 1:
             crop = next(iter(crops_of_experiment[experiment]))
-        if (crop, experiment) not in experiments and len(experiments_of_weather[(crop, experiment.upper())]) == 1:
+        if (attributed and (crop, experiment) not in experiments
+                and len(experiments_of_weather[(crop, experiment.upper())]) == 1):
             experiment = next(iter(experiments_of_weather[(crop, experiment.upper())]))
         if (crop, experiment) not in experiments:
             continue

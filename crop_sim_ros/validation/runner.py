@@ -102,17 +102,19 @@ def _padded(values: np.ndarray, days: int) -> np.ndarray:
 
 
 def run_treatments(inputs_dir: str | Path, treatments: list[Treatment], source: str,
-                   all_treatments: list[Treatment] | None = None) -> list[TreatmentRun]:
+                   all_treatments: list[Treatment] | None = None,
+                   irrigation_rows: str = "reference") -> list[TreatmentRun]:
     """Simulate ``treatments`` with parameter ``source`` (zhao2019 or simple_r) in one batched call.
 
-    ``all_treatments`` (default ``treatments``) is what Irrigation.csv rows are matched against.
+    ``all_treatments`` (default ``treatments``) is what Irrigation.csv rows are matched against, the way
+    ``irrigation_rows`` says (:func:`~crop_sim_ros.validation.inputs.read_irrigation`).
     Raises UnknownNameError for an unknown crop, cultivar or soil, WeatherError (file, line, column)
     for a missing or impossible weather value inside a simulated season, InputError for the rest.
     """
     if not treatments:
         raise InputError("no treatments to run")
     library = crop_library(source, inputs_dir)
-    irrigation = read_irrigation(inputs_dir, all_treatments or treatments)
+    irrigation = read_irrigation(inputs_dir, all_treatments or treatments, irrigation_rows)
     weather_by_name: dict[str, WeatherSeries] = {}
     params, cultivars, windows, complete_days = [], [], [], []
     for t in treatments:
