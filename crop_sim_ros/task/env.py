@@ -21,6 +21,34 @@ STEP_INFO_KEYS = ("irrigation_requested_mm", "irrigation_applied_mm", "irrigatio
                   "drainage_mm", "transpiration_mm", "et0_mm", "arid", "episode_return", "normalized_return")
 
 
+# What an irrigation amount may be: Python or numpy integers and floats (never bool, str, Decimal, Fraction or
+# objects, which float() would quietly accept). Array dtype kinds: float, signed and unsigned integer.
+_NUMBER_TYPES = (float, int, np.floating, np.integer)
+NUMERIC_DTYPE_KINDS = "fiu"
+
+
+def irrigation_mm(action) -> float:
+    """The irrigation amount (mm) of one action: a real number, or a numeric array or list of exactly one.
+    TypeError for a non-numeric action (a string, bool, Decimal, Fraction, an object array), ValueError for
+    more than one value. The common cases (a float32 array of shape (1,), a float) are checked first: this
+    runs on every step."""
+    if isinstance(action, np.ndarray):
+        if action.dtype.kind not in NUMERIC_DTYPE_KINDS:
+            raise TypeError(f"action must be a number of mm, got an array of dtype {action.dtype}")
+        if action.size != 1:
+            raise ValueError(f"action must be one irrigation amount in mm, got an array of shape {action.shape}")
+        return float(action.item())
+    if type(action) in (list, tuple):
+        if len(action) != 1:
+            raise ValueError(f"action must be one irrigation amount in mm, got {len(action)} values")
+        if isinstance(action[0], (np.ndarray, list, tuple)):
+            return irrigation_mm(action[0])
+        action = action[0]
+    if not isinstance(action, _NUMBER_TYPES) or isinstance(action, (bool, np.bool_)):
+        raise TypeError(f"action must be a number of mm (int or float), got {type(action).__name__} {action!r}")
+    return float(action)
+
+
 class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
     """
     ## Description
@@ -36,7 +64,8 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
     ``Box(0, 100, (1,), float32)``: irrigation applied today, mm (the upper bound is the scenario's
     ``max_irrigation_mm``). It enters the water balance with the day's rain (and runs off like rain).
     A value outside the box is clipped to it and flagged in ``info["irrigation_clipped"]``; NaN or an
-    infinite value raises ValueError.
+    infinite value raises ValueError. The action is a Python or numpy int or float, or a numeric array or
+    list of one; anything else (a string, a bool, Decimal, Fraction, an object array) raises TypeError.
 
     ## Observation Space
 
@@ -168,10 +197,7 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("call reset() before step()")
         if self._ended:
             raise RuntimeError("the season has ended (terminated or truncated); call reset()")
-        try:
-            requested = float(action[0] if np.shape(action) == (1,) else action)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be one irrigation amount in mm, got {action!r}") from None
+        requested = irrigation_mm(action)
         if not math.isfinite(requested):
             raise ValueError(f"irrigation must be a finite number of mm, got {requested}")
         applied = min(max(requested, 0.0), self.scenario.max_irrigation_mm)

@@ -37,6 +37,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..model import DailyFluxes
 from . import core
+from .env import NUMERIC_DTYPE_KINDS
 from .scenario import Scenario, get_scenario
 
 
@@ -141,7 +142,10 @@ class IrrigationVectorEnv(VectorEnv):
     def step(self, actions):
         if self._state is None:
             raise RuntimeError("call reset() before step()")
-        requested = np.asarray(actions, dtype=np.float64).reshape(-1)
+        given = np.asarray(actions)
+        if given.dtype.kind not in NUMERIC_DTYPE_KINDS:  # float() would take strings, bools, Decimal objects
+            raise TypeError(f"actions must be numbers of mm (int or float), got an array of dtype {given.dtype}")
+        requested = given.astype(np.float64).reshape(-1)
         if requested.shape != (self.num_envs,):
             raise ValueError(f"actions must hold one irrigation amount per field ({self.num_envs}), "
                              f"got shape {np.shape(actions)}")
