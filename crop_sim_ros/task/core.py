@@ -48,7 +48,9 @@ water stress (S_water = 0) and no water cost (see :func:`potential_yield_t_ha`).
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+import statistics
+from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -56,25 +58,22 @@ from ..model import (CropState, DailyFluxes, DailyWeather, FieldParameters, harv
                      initial_state, repeat_parameters, step)
 from ..model.simple import scalar_parameters, scalar_state
 from ..weather import WeatherSeries
+from .layout import (BIOMASS, DAY, FORECAST, PAPER, PAW, PAW_OBSERVED, QUOTA_OBSERVED_CAP_MM, THERMAL_TIME, TODAY,
+                     WEATHER_NAMES, ObservationLayout)
 from .scenario import ObservationNoise, Scenario
+from .terms import Range
 
 KG_PER_T = 1000.0
-WEATHER_NAMES = ("tmax_degc", "tmin_degc", "tavg_degc", "rain_mm", "srad_mj_m2", "co2_ppm", "vap_hpa", "wind_m_s")
-OBSERVATION_NAMES = (("biomass_t_ha", "thermal_time_degc_d", "days_since_sowing") + WEATHER_NAMES
-                     + tuple(f"forecast_{name}" for name in WEATHER_NAMES) + ("paw_mm",))
-OBSERVATION_UNITS = (("t/ha", "degC d", "d") + ("degC", "degC", "degC", "mm", "MJ/m2", "ppm", "hPa", "m/s") * 2
-                     + ("mm",))
-OBSERVATION_SIZE = len(OBSERVATION_NAMES)
-TODAY = slice(3, 11)
-FORECAST = slice(11, 19)
-BIOMASS, PAW = 0, 19
+# The paper's layout (the family's extended layout appends to it: see crop_sim_ros.task.layout).
+OBSERVATION_NAMES = PAPER.names
+OBSERVATION_UNITS = PAPER.units
+OBSERVATION_SIZE = PAPER.size
 # Column of each model input in SeasonTable.weather.
 TMAX, TMIN, RAIN, SRAD = (WEATHER_NAMES.index(n) for n in ("tmax_degc", "tmin_degc", "rain_mm", "srad_mj_m2"))
 # SeasonTable.model_weather columns: the DailyWeather fields in order (TMAX, TMIN, SRAD, rain, ET0).
 # Bounds of a physically possible observation: noisy values below the lower bound are clipped to it.
-OBSERVATION_LOW = np.array([0.0, -np.inf, 0.0] + [-np.inf, -np.inf, -np.inf, 0.0, 0.0, 0.0, 0.0, 0.0] * 2 + [0.0],
-                           dtype=np.float32)
-OBSERVATION_HIGH = np.full(OBSERVATION_SIZE, np.inf, dtype=np.float32)
+OBSERVATION_LOW = PAPER.low
+OBSERVATION_HIGH = PAPER.high
 # A season table pads every season with copies of its last day: today (index n_days) and tomorrow (n_days + 1).
 _PAD_DAYS = 2
 
@@ -143,7 +142,7 @@ def _frozen_table(weather: np.ndarray, et0_mm: np.ndarray, n_days: np.ndarray, s
                   potential_yield_t_ha: np.ndarray, sources: tuple, filled: tuple) -> SeasonTable:
     """A SeasonTable of these arrays (read-only: tables are cached and shared) and the observed weather."""
     observed = np.zeros(weather.shape[:2] + (OBSERVATION_SIZE,), dtype=np.float32)[:, :-1]
-    observed[..., 2] = np.arange(observed.shape[1])
+    observed[..., DAY] = np.arange(observed.shape[1])
     observed[..., TODAY] = weather[:, :-1]
     observed[..., FORECAST] = weather[:, 1:]
     observed = np.ascontiguousarray(observed)
@@ -200,26 +199,71 @@ def potential_yield_t_ha(params: FieldParameters, weather: np.ndarray, et0_mm: n
 
 @dataclass(frozen=True)
 class TaskParams:
-    """The static parameters of the task for N fields: the model's field parameters (N fields), their
-    sowing-day state, the observation noise and the reward's cost."""
+    """The static parameters of the task for N fields.
+
+    ======================== ========================================================================
+    Name                     Description
+    ======================== ========================================================================
+    fields, sowing_state     the model's field parameters (N fields) and their sowing-day state
+    noise_std                float32 (10,): noise std of the 8 forecast values and PAW (observation
+                             order: degC, degC, degC, mm, MJ m-2, ppm, hPa, m s-1, mm), then biomass t ha-1
+    max_irrigation_mm        the action's upper bound, mm d-1
+    layout                   the observation layout (paper: 20 values; family: 28)
+    yield_value_per_t        reward units per t ha-1 of dry yield, drawn per episode: 1 (t/ha reward) or
+                             tuber price USD t-1 (fresh) / dry-matter fraction
+    water_price_per_mm,      reward units per mm irrigated, each drawn per episode (the paper: C_I's
+    pumping_energy_per_mm    magnitude and 0)
+    event_cost               reward units per day with irrigation
+    dry_matter_fraction      of fresh tubers (1 for the t/ha reward), for the observed tuber price
+    quota_mm                 season allocation, mm, drawn per episode (inf: none)
+    capacity_mm_per_day      most applied in one day, mm d-1 (max_irrigation_mm when unlimited)
+    nominal_season_days      d, the observation's season_days_left counts down from it
+    paw_dropout_probability  chance a day's PAW reading is missing; paw_sensor False: never read
+    ======================== ========================================================================
+    """
 
     fields: FieldParameters
     sowing_state: CropState
-    noise_std: np.ndarray  # float32 (10,): the 8 forecast values and PAW (observation order), then biomass
-    irrigation_cost_per_mm: float
+    noise_std: np.ndarray
     max_irrigation_mm: float
+    layout: ObservationLayout = PAPER
+    yield_value_per_t: Range = Range(1.0, 1.0)
+    water_price_per_mm: Range = Range(1.25e-4, 1.25e-4)
+    pumping_energy_per_mm: Range = Range(0.0, 0.0)
+    event_cost: float = 0.0
+    dry_matter_fraction: float = 1.0
+    quota_mm: Range = Range(np.inf, np.inf)
+    capacity_mm_per_day: float = np.inf
+    nominal_season_days: int = 150
+    paw_dropout_probability: float = 0.0
+    paw_sensor: bool = True
 
     @functools.cached_property
     def noisy(self) -> bool:
-        """Any observation noise at all (cached: the observation is on the hot path)."""
-        return bool(self.noise_std.any())
+        """Any observation noise or dropout at all (cached: the observation is on the hot path)."""
+        return bool(self.noise_std.any()) or self.paw_dropout_probability > 0.0
+
+    @functools.cached_property
+    def noise_columns(self) -> int:
+        """Standard normals drawn per field and day: the noise_std columns, and one more that decides the PAW
+        dropout (missing when below the normal quantile of the dropout probability)."""
+        return len(self.noise_std) + (self.paw_dropout_probability > 0.0)
+
+    @functools.cached_property
+    def limited(self) -> bool:
+        """A capacity below the action bound or a quota: irrigation may be cut (see admissible_irrigation_mm)."""
+        return self.capacity_mm_per_day < self.max_irrigation_mm or np.isfinite(self.quota_mm.high)
+
+    @functools.cached_property
+    def _dropout_z(self) -> float:
+        p = self.paw_dropout_probability
+        return -np.inf if p <= 0.0 else (np.inf if p >= 1.0 else statistics.NormalDist().inv_cdf(p))
 
 
 def scalar_task_params(params: TaskParams) -> TaskParams:
     """The first field of ``params`` held as Python floats: the one-field fast path (``xp`` = SCALAR_MATH),
     bit-identical to the array path."""
-    return TaskParams(scalar_parameters(params.fields), scalar_state(params.sowing_state), params.noise_std,
-                      params.irrigation_cost_per_mm, params.max_irrigation_mm)
+    return replace(params, fields=scalar_parameters(params.fields), sowing_state=scalar_state(params.sowing_state))
 
 
 def task_params(scenario: Scenario, n_fields: int = 1) -> TaskParams:
@@ -227,47 +271,104 @@ def task_params(scenario: Scenario, n_fields: int = 1) -> TaskParams:
     fields_params = repeat_parameters(scenario.field_parameters(), n_fields)
     noise: ObservationNoise = scenario.noise
     noise_std = np.append(noise.forecast_std(), [noise.paw_mm, noise.biomass_t_ha]).astype(np.float32)
-    return TaskParams(fields_params, initial_state(fields_params), noise_std, float(scenario.irrigation_cost_per_mm),
-                      float(scenario.max_irrigation_mm))
+    params = TaskParams(fields_params, initial_state(fields_params), noise_std, float(scenario.max_irrigation_mm),
+                        water_price_per_mm=Range(-scenario.irrigation_cost_per_mm, -scenario.irrigation_cost_per_mm))
+    money, limits = scenario.economics, scenario.limits
+    if not scenario.is_family_task:
+        return params
+    price = money.tuber_price_usd_per_t
+    dmf = money.tuber_dry_matter_fraction
+    return replace(
+        params, layout=scenario.layout, yield_value_per_t=Range(price.low / dmf, price.high / dmf),
+        water_price_per_mm=money.water_price_usd_per_mm, pumping_energy_per_mm=money.pumping_energy_usd_per_mm,
+        event_cost=money.event_cost_usd, dry_matter_fraction=dmf,
+        quota_mm=limits.quota_mm or Range(np.inf, np.inf),
+        capacity_mm_per_day=(np.inf if limits.capacity_mm_per_day is None else limits.capacity_mm_per_day),
+        nominal_season_days=limits.nominal_season_days, paw_dropout_probability=limits.paw_dropout_probability,
+        paw_sensor=limits.paw_sensor)
 
 
-@dataclass(frozen=True)
-class TaskState:
-    """N fields: the crop (at the start of its day) and the index of each field's season in the table."""
+class EpisodeTerms(NamedTuple):
+    """What each field draws at the start of its episode (arrays (N,), or floats for one scalar field):
+    ``yield_value_per_t`` (reward units per t ha-1 of dry yield), ``water_cost_per_mm`` (reward units per mm:
+    delivered water + pumping energy) and ``quota_mm`` (the season's allocation, mm; inf = none)."""
+
+    yield_value_per_t: np.ndarray | float
+    water_cost_per_mm: np.ndarray | float
+    quota_mm: np.ndarray | float
+
+
+def draw_terms(params: TaskParams, rng: np.random.Generator | None, n: int | None) -> EpisodeTerms:
+    """The episode terms of ``n`` fields (``n`` None: one scalar field), drawn from ``rng``. A task whose
+    terms are all fixed (the paper's) draws nothing, so its random stream is unchanged."""
+    ranges = (params.yield_value_per_t, params.water_price_per_mm, params.pumping_energy_per_mm, params.quota_mm)
+    if rng is None and not all(r.fixed for r in ranges):
+        raise ValueError("this task draws prices or quotas per episode: initial/restart need a random generator")
+    value, water, energy, quota = (r.draw(rng, n) for r in ranges)
+    return EpisodeTerms(value, water + energy, quota)
+
+
+class TaskState(NamedTuple):
+    """N fields (arrays (N,)), or one field as Python scalars: the crop (at the start of its day), the index
+    of each field's season in the table, the episode's terms, the irrigation applied so far this season
+    (mm) and yesterday (mm)."""
 
     crop: CropState
     season: np.ndarray | int
+    terms: EpisodeTerms
+    irrigated_mm: np.ndarray | float
+    last_irrigation_mm: np.ndarray | float
 
 
-def initial(params: TaskParams, season) -> TaskState:
+def initial(params: TaskParams, season, rng: np.random.Generator | None = None) -> TaskState:
     """Every field on its sowing day, in the seasons ``season`` (indices into the table, shape (N,); an
-    int for scalar ``params``)."""
+    int for scalar ``params``), with its episode terms drawn from ``rng`` (see :func:`draw_terms`)."""
     if isinstance(season, int):
-        return TaskState(params.sowing_state, season)
-    return TaskState(params.sowing_state, np.asarray(season, dtype=np.int64))
+        return TaskState(params.sowing_state, season, draw_terms(params, rng, None), 0.0, 0.0)
+    season = np.asarray(season, dtype=np.int64)
+    zeros = np.zeros(len(season))
+    return TaskState(params.sowing_state, season, draw_terms(params, rng, len(season)), zeros, zeros)
 
 
-def restart(params: TaskParams, state: TaskState, mask: np.ndarray, season: np.ndarray) -> TaskState:
-    """The fields selected by ``mask`` back on their sowing day in the seasons ``season`` (shape (N,));
-    the others unchanged."""
+def restart(params: TaskParams, state: TaskState, mask: np.ndarray, season: np.ndarray,
+            rng: np.random.Generator | None = None) -> TaskState:
+    """The fields selected by ``mask`` back on their sowing day in the seasons ``season`` (shape (N,)), with
+    new episode terms drawn from ``rng`` for them; the others unchanged."""
     crop = CropState(**{name: np.where(mask, getattr(params.sowing_state, name), value)
                         for name, value in state.crop._asdict().items()})
-    return TaskState(crop, np.where(mask, season, state.season))
+    drawn = draw_terms(params, rng, int(mask.sum()))
+    terms = []
+    for old, new in zip(state.terms, drawn):
+        merged = np.array(old, dtype=float, copy=True)
+        merged[mask] = new
+        terms.append(merged)
+    return TaskState(crop, np.where(mask, season, state.season), EpisodeTerms(*terms),
+                     np.where(mask, 0.0, state.irrigated_mm), np.where(mask, 0.0, state.last_irrigation_mm))
+
+
+def admissible_irrigation_mm(params: TaskParams, state: TaskState, irrigation_mm, xp=np):
+    """``irrigation_mm`` (already within [0, max_irrigation_mm]) cut to the system's daily capacity and to
+    the season's quota left: what the field can actually receive today."""
+    if not params.limited:
+        return irrigation_mm
+    left = xp.maximum(state.terms.quota_mm - state.irrigated_mm, 0.0)
+    return xp.minimum(xp.minimum(irrigation_mm, params.capacity_mm_per_day), left)
 
 
 def transition(params: TaskParams, table: SeasonTable, state: TaskState,
                irrigation_mm: np.ndarray, xp=np) -> tuple[TaskState, DailyFluxes]:
-    """One day of every field with ``irrigation_mm`` (checked, within [0, max]) applied; the next state and
-    the day's fluxes. Fields past their weather (truncated) repeat its last day. ``xp``: numpy, or
-    SCALAR_MATH for one field held as Python floats (:func:`scalar_task_params`)."""
+    """One day of every field with ``irrigation_mm`` (checked, admissible: see
+    :func:`admissible_irrigation_mm`) applied; the next state and the day's fluxes. Fields past their
+    weather (truncated) repeat its last day. ``xp``: numpy, or SCALAR_MATH for one field held as Python
+    floats (:func:`scalar_task_params`)."""
     weather = _daily_weather(table.model_weather, state.season, state.crop.days_since_sowing, xp)
     crop, fluxes = step(params.fields, state.crop, weather, irrigation_mm, xp)
-    return TaskState(crop, state.season), fluxes
+    return TaskState(crop, state.season, state.terms, state.irrigated_mm + irrigation_mm, irrigation_mm), fluxes
 
 
 def observation(params: TaskParams, table: SeasonTable, state: TaskState, rng: np.random.Generator) -> np.ndarray:
-    """The (N, 20) float32 observations of ``state`` (see the module table); noise drawn from ``rng``.
-    A scalar state (one field as Python floats) gives one observation of shape (20,)."""
+    """The (N, layout size) float32 observations of ``state`` (see :mod:`crop_sim_ros.task.layout`); noise
+    drawn from ``rng``. A scalar state (one field as Python floats) gives one observation of shape (size,)."""
     crop = state.crop
     # Day, today's and tomorrow's weather (the table's padding makes the day after the last day the last day).
     rows = table.observation_rows
@@ -275,25 +376,50 @@ def observation(params: TaskParams, table: SeasonTable, state: TaskState, rng: n
     rows = rows.reshape(-1, OBSERVATION_SIZE)
     # One field: plain indexing (np.take costs ~1 us of dispatch); N fields: np.take (the fastest gather).
     obs = rows[index].copy() if isinstance(index, int) else np.take(rows, index, axis=0)
+    if params.layout is not PAPER:
+        obs = np.concatenate([obs, _extension(params, state)], axis=-1)
     obs[..., BIOMASS] = crop.biomass_kg_ha / KG_PER_T
-    obs[..., 1] = crop.thermal_time_degc_d
+    obs[..., THERMAL_TIME] = crop.thermal_time_degc_d
     obs[..., PAW] = crop.plant_available_water_mm
     if params.noisy:
-        # Noise columns: the 8 forecast values and PAW (observation columns 11-19), then biomass.
-        noise = rng.standard_normal(obs.shape[:-1] + (len(params.noise_std),), dtype=np.float32)
-        noise *= params.noise_std
-        obs[..., FORECAST.start:] += noise[..., :-1]
-        obs[..., BIOMASS] += noise[..., -1]
-        np.maximum(obs, OBSERVATION_LOW, out=obs)
+        # Noise columns: the 8 forecast values and PAW (observation columns 11-19), then biomass, then the
+        # dropout draw (if the task has dropouts).
+        noise = rng.standard_normal(obs.shape[:-1] + (params.noise_columns,), dtype=np.float32)
+        obs[..., FORECAST.start:PAW + 1] += noise[..., :PAW + 1 - FORECAST.start] * params.noise_std[:-1]
+        obs[..., BIOMASS] += noise[..., len(params.noise_std) - 1] * params.noise_std[-1]
+        np.maximum(obs, params.layout.low, out=obs)
+        if params.paw_dropout_probability > 0.0:
+            missing = noise[..., -1] < params._dropout_z
+            obs[..., PAW] = np.where(missing, 0.0, obs[..., PAW])
+            obs[..., PAW_OBSERVED] = np.where(missing, 0.0, obs[..., PAW_OBSERVED])
+    if not params.paw_sensor:
+        obs[..., PAW] = 0.0
     return obs
+
+
+def _extension(params: TaskParams, state: TaskState) -> np.ndarray:
+    """The family's 8 extra observation values (layout columns 20-27) of ``state``, float32."""
+    terms = state.terms
+    day = state.crop.days_since_sowing
+    left = np.minimum(np.maximum(np.asarray(terms.quota_mm) - state.irrigated_mm, 0.0), QUOTA_OBSERVED_CAP_MM)
+    values = (np.asarray(terms.yield_value_per_t) * params.dry_matter_fraction, terms.water_cost_per_mm,
+              params.event_cost, left, np.maximum(params.nominal_season_days - np.asarray(day), 0),
+              min(params.capacity_mm_per_day, params.max_irrigation_mm), 1.0 if params.paw_sensor else 0.0,
+              state.last_irrigation_mm)
+    shape = np.shape(day)
+    return np.stack([np.broadcast_to(np.asarray(v, dtype=np.float32), shape) for v in values], axis=-1)
 
 
 def reward(params: TaskParams, state: TaskState, irrigation_mm: np.ndarray, next_state: TaskState,
            xp=np) -> np.ndarray:
-    """C_I * irrigation every day, plus the dry yield (t/ha) on the day the field matures."""
+    """The value of the dry yield (t ha-1 x yield value per t) on the day the field matures, minus the
+    water's cost (mm x cost per mm) and the event cost of a day with irrigation. Paper task: C_I * a + Y."""
     harvest = next_state.crop.mature & xp.logical_not(state.crop.mature)
     yield_t_ha = harvestable_yield_kg_ha(params.fields, next_state.crop) / KG_PER_T
-    return params.irrigation_cost_per_mm * irrigation_mm + xp.where(harvest, yield_t_ha, 0.0)
+    cost = state.terms.water_cost_per_mm * irrigation_mm
+    if params.event_cost:
+        cost = cost + params.event_cost * (irrigation_mm > 0.0)
+    return xp.where(harvest, state.terms.yield_value_per_t * yield_t_ha, 0.0) - cost
 
 
 def crop_info(params: TaskParams, crop: CropState) -> dict:

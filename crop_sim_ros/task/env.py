@@ -155,7 +155,7 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
         # One field as Python floats: the model's scalar path, bit-identical to the array path and ~6x faster.
         self._one = core.scalar_task_params(self.params)
         self.action_space = gym.spaces.Box(0.0, self.scenario.max_irrigation_mm, (1,), np.float32)
-        self.observation_space = gym.spaces.Box(core.OBSERVATION_LOW, core.OBSERVATION_HIGH, dtype=np.float32)
+        self.observation_space = gym.spaces.Box(self.params.layout.low, self.params.layout.high, dtype=np.float32)
         self._table = self.seasons
         self._state: core.TaskState | None = None
         self._season = -1
@@ -180,7 +180,7 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
                 raise ValueError(f"season {season} is outside 0..{len(self.seasons) - 1} of scenario "
                                  f"{self.scenario.name!r}")
             self._season = int(season)
-        self._state = core.initial(self._one, max(self._season, 0))
+        self._state = core.initial(self._one, max(self._season, 0), self.np_random)
         k = self._state.season
         # What stays the same all season, computed once per reset (the step is the hot path).
         self._dates = np.datetime_as_string(self._table.sowing_dates[k]
@@ -200,7 +200,8 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
         requested = irrigation_mm(action)
         if not math.isfinite(requested):
             raise ValueError(f"irrigation must be a finite number of mm, got {requested}")
-        applied = min(max(requested, 0.0), self.scenario.max_irrigation_mm)
+        applied = core.admissible_irrigation_mm(self._one, self._state,
+                                                min(max(requested, 0.0), self.scenario.max_irrigation_mm), SCALAR_MATH)
         state = self._state
         self._state, fluxes = core.transition(self._one, self._table, state, applied, SCALAR_MATH)
         reward = core.reward(self._one, state, applied, self._state, SCALAR_MATH)
@@ -215,7 +216,8 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
                     runoff_mm=fluxes.runoff_mm, drainage_mm=fluxes.drainage_mm,
                     transpiration_mm=fluxes.transpiration_mm, et0_mm=fluxes.et0_mm,
                     arid=fluxes.arid, episode_return=self._return,
-                    normalized_return=self._return / self._season_info["potential_yield_t_ha"])
+                    normalized_return=self._return / (self._season_info["potential_yield_t_ha"]
+                                                      * state.terms.yield_value_per_t))
         return self._observe(), reward, terminated, truncated, info
 
     def _observe(self) -> np.ndarray:

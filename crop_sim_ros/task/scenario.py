@@ -43,6 +43,8 @@ from ..model import FieldParameters, Management, UnknownNameError, crop_library,
 from ..model.et0 import ET0_METHODS
 from ..weather import Site, WeatherSeries, read_agweathernet_csv, read_dssat_wth
 from ..weather.csv_readers import read_plain_csv
+from .layout import EXTENDED, PAPER, ObservationLayout
+from .terms import Economics, FarmLimits
 
 # ../shared/data next to the repository root (crop_sim_ros/task/scenario.py -> parents[2] is the root).
 DEFAULT_DATA_DIR = Path(__file__).resolve().parents[2].parent / "shared" / "data"
@@ -175,6 +177,8 @@ class Scenario:
     max_irrigation_mm: float = 100.0
     et0_method: str = "penman_monteith"
     observe_measured_tavg: bool = False
+    economics: Economics | None = None
+    limits: FarmLimits = FarmLimits()
     description: str = ""
     data_dir: Path | None = None
 
@@ -196,6 +200,28 @@ class Scenario:
             raise ValueError(f"noise: expected ObservationNoise, got {self.noise!r}")
         if self.site is not None and not isinstance(self.site, Site):
             raise ValueError(f"site: expected a Site, got {self.site!r}")
+        if self.economics is not None and not isinstance(self.economics, Economics):
+            raise ValueError(f"economics: expected Economics, got {self.economics!r}")
+        if not isinstance(self.limits, FarmLimits):
+            raise ValueError(f"limits: expected FarmLimits, got {self.limits!r}")
+        if self.economics is None and self.limits != FarmLimits():
+            raise ValueError("limits: a task with a quota, a capacity or imperfect sensing is a family task, "
+                             "whose reward is in USD/ha: give it economics too (economics: {} takes the defaults)")
+
+    @property
+    def is_family_task(self) -> bool:
+        """A task of the family (money, quota, capacity or imperfect sensing): extended observation, reward in
+        USD/ha. The paper's task has none of these terms."""
+        return self.economics is not None or self.limits != FarmLimits()
+
+    @property
+    def layout(self) -> ObservationLayout:
+        """The observation layout: the paper's 20 values, or the family's 28."""
+        return EXTENDED if self.is_family_task else PAPER
+
+    @property
+    def reward_unit(self) -> str:
+        return "USD/ha" if self.economics is not None else "t/ha"
 
     @property
     def resolved_data_dir(self) -> Path:
@@ -312,6 +338,13 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
             values["site"] = Site(**site)
         except (TypeError, ValueError) as error:
             raise ValueError(f"site: {error}") from None
+    for key, kind in (("economics", Economics), ("limits", FarmLimits)):
+        if values.get(key) is None:
+            values.pop(key, None)
+        elif not isinstance(values[key], dict):
+            raise ValueError(f"{key}: expected a mapping, got {values[key]!r}")
+        else:
+            values[key] = kind.from_dict(values[key])
     values["sowing_date"] = sowing
     return Scenario(weather=source, data_dir=None if data_dir is None else Path(data_dir), **values)
 

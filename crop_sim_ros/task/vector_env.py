@@ -102,7 +102,8 @@ class IrrigationVectorEnv(VectorEnv):
         self.seasons = core.scenario_table(self.scenario)
         self.params = core.task_params(self.scenario, self.num_envs)
         self.single_action_space = gym.spaces.Box(0.0, self.scenario.max_irrigation_mm, (1,), np.float32)
-        self.single_observation_space = gym.spaces.Box(core.OBSERVATION_LOW, core.OBSERVATION_HIGH, dtype=np.float32)
+        self.single_observation_space = gym.spaces.Box(self.params.layout.low, self.params.layout.high,
+                                                       dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self._table = self.seasons
@@ -114,7 +115,7 @@ class IrrigationVectorEnv(VectorEnv):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         self._noise_rng = PrefetchedNormal(int(self.np_random.integers(2**63)), self.num_envs,
-                                           len(self.params.noise_std))
+                                           self.params.noise_columns)
         options = dict(options or {})
         weathers = options.pop("weathers", None)
         season = options.pop("season", None)
@@ -133,7 +134,7 @@ class IrrigationVectorEnv(VectorEnv):
             season = np.broadcast_to(np.asarray(season, dtype=np.int64), (self.num_envs,))
             if season.min() < 0 or season.max() >= len(self.seasons):
                 raise ValueError(f"season: indices must be in 0..{len(self.seasons) - 1}")
-        self._state = core.initial(self.params, season)
+        self._state = core.initial(self.params, season, self.np_random)
         self._autoreset[:] = False
         self._returns[:] = 0.0
         obs = core.observation(self.params, self._table, self._state, self._noise_rng)
@@ -152,8 +153,9 @@ class IrrigationVectorEnv(VectorEnv):
         if not np.all(np.isfinite(requested)):
             raise ValueError(f"irrigation must be finite mm, got a non-finite value for fields "
                              f"{np.flatnonzero(~np.isfinite(requested))[:10].tolist()}")
-        applied = np.clip(requested, 0.0, self.scenario.max_irrigation_mm)
         state = self._state
+        applied = core.admissible_irrigation_mm(self.params, state,
+                                                np.clip(requested, 0.0, self.scenario.max_irrigation_mm))
         next_state, fluxes = core.transition(self.params, self._table, state, applied)
         rain_mm = self._table.weather[state.season, state.crop.days_since_sowing, core.RAIN]
         rewards = core.reward(self.params, state, applied, next_state)
@@ -193,7 +195,7 @@ class IrrigationVectorEnv(VectorEnv):
         season = np.zeros(self.num_envs, dtype=np.int64)
         season[mask] = self._draw_seasons(int(mask.sum()))
         self._returns[mask] = 0.0
-        return core.restart(self.params, state, mask, season)
+        return core.restart(self.params, state, mask, season, self.np_random)
 
     def _state_infos(self, state: core.TaskState) -> dict[str, np.ndarray]:
         values = {
@@ -202,7 +204,8 @@ class IrrigationVectorEnv(VectorEnv):
             "potential_yield_t_ha": self._table.potential_yield_t_ha[state.season],
             "episode_return": self._returns.copy(),
         }
-        values["normalized_return"] = values["episode_return"] / values["potential_yield_t_ha"]
+        values["normalized_return"] = values["episode_return"] / (values["potential_yield_t_ha"]
+                                                                 * state.terms.yield_value_per_t)
         return self._with_masks(values)
 
     def _step_infos(self, state: core.TaskState, fluxes: DailyFluxes, requested: np.ndarray, applied: np.ndarray,
@@ -228,4 +231,5 @@ class IrrigationVectorEnv(VectorEnv):
 
 
 def _take(state: core.TaskState, mask: np.ndarray) -> core.TaskState:
-    return core.TaskState(state.crop.take(mask), state.season[mask])
+    return core.TaskState(state.crop.take(mask), state.season[mask], core.EpisodeTerms(*(t[mask] for t in state.terms)),
+                          state.irrigated_mm[mask], state.last_irrigation_mm[mask])
