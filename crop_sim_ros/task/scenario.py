@@ -16,7 +16,10 @@ File formats: ``agweathernet`` (AgWeatherNet daily CSV), ``dssat`` (DSSAT .WTH),
 ``crop_sim_ros.weather.csv_readers.read_plain_csv``).
 
 Every season runs from its sowing date for at most ``max_season_days`` days (fewer if the weather ends
-first). Missing vapour pressure and wind (the DSSAT files of Paterson, WA have neither) are filled by
+first). Sizes are bounded so that a typo cannot exhaust the memory: ``max_season_days`` at most
+MAX_SEASON_DAYS (730, two years), a generator's ``n_seasons`` at most MAX_GENERATED_SEASONS (10,000), and
+their product at most MAX_GENERATED_DAYS (2,000,000 season-days: about 0.7 GB and 15 s to generate here).
+Missing vapour pressure and wind (the DSSAT files of Paterson, WA have neither) are filled by
 FAO-56's missing-data rules (``WeatherSeries.with_fao56_fills``: e_a from TMIN, wind 2 m/s); the
 environment reports the fills in ``info["weather_filled"]``.
 
@@ -31,6 +34,7 @@ that only the weather differs from training).
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, fields, replace
 from datetime import date
 from pathlib import Path
@@ -54,6 +58,17 @@ WEATHER_FORMATS = ("agweathernet", "dssat", "csv")
 GENERATOR_PARAMETERS = ("benton",)
 # Every weather variable the task needs each day (the model's four plus what ET0 and the observation use).
 TASK_WEATHER_VARIABLES = ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "vap_hpa", "wind_m_s")
+# Upper bounds of the sizes a scenario sets (see the module docstring).
+MAX_SEASON_DAYS = 730
+MAX_GENERATED_SEASONS = 10_000
+MAX_GENERATED_DAYS = 2_000_000
+
+
+def _check_count(name: str, value: Any, high: int) -> None:
+    """ValueError unless ``value`` is a whole number in 1..high."""
+    if (isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating))
+            or not (math.isfinite(value) and value == int(value) and 1 <= value <= high)):
+        raise ValueError(f"{name}: {value!r} is not a whole number in 1..{high}")
 
 
 def _check_number(name: str, value: Any, low: float = -np.inf, high: float = np.inf) -> float:
@@ -144,8 +159,7 @@ class WeatherSource:
             if self.generator not in GENERATOR_PARAMETERS:
                 raise ValueError(f"weather.generator: {self.generator!r} is not one of "
                                  f"{', '.join(GENERATOR_PARAMETERS)}")
-            if int(self.n_seasons) != self.n_seasons or self.n_seasons < 1:
-                raise ValueError(f"weather.n_seasons: {self.n_seasons!r} is not a positive integer")
+            _check_count("weather.n_seasons", self.n_seasons, MAX_GENERATED_SEASONS)
             if int(self.seed) != self.seed or self.seed < 0:
                 raise ValueError(f"weather.seed: {self.seed!r} is not a non-negative integer")
         elif not self.seasons or (self.kind == "file" and len(self.seasons) != 1):
@@ -192,8 +206,10 @@ class Scenario:
         _check_number("co2_ppm", self.co2_ppm, 0.0, 5000.0)
         _check_number("irrigation_cost_per_mm", self.irrigation_cost_per_mm, high=0.0)
         _check_number("max_irrigation_mm", self.max_irrigation_mm, 0.0, 1000.0)
-        if int(self.max_season_days) != self.max_season_days or self.max_season_days < 1:
-            raise ValueError(f"max_season_days: {self.max_season_days!r} is not a positive integer")
+        _check_count("max_season_days", self.max_season_days, MAX_SEASON_DAYS)
+        if self.weather.kind == "generator" and self.weather.n_seasons * self.max_season_days > MAX_GENERATED_DAYS:
+            raise ValueError(f"weather.n_seasons x max_season_days: {self.weather.n_seasons} x "
+                             f"{self.max_season_days} days is over {MAX_GENERATED_DAYS:,} generated days")
         if self.et0_method not in ET0_METHODS:
             raise ValueError(f"et0_method: {self.et0_method!r} is not one of {', '.join(ET0_METHODS)}")
         if not isinstance(self.noise, ObservationNoise):
