@@ -8,21 +8,28 @@ April-September, when only the AgWeatherNet file has them) so take the nearest o
 metadata lists every such pooling. Wet-day temperature and radiation statistics pool anomalies from the
 dry-day mean curve of each day (the smooth daily curve of the monthly means, as the generator draws),
 so pooling does not mix in the neighbour's seasonal level.
+
+Repeated weather is fitted once (:func:`distinct_station_days`): experiments often reuse one year's file
+under another name (CARO8201.WTH is UFGA8201.WTH), sometimes under another year's dates. A site whose files
+have no vapour pressure (or no wind) at all gets none of those parameters: the generator then fills them by
+FAO-56's missing-data rules, as the task fills a real season without them (see the generator's docstring).
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 from dataclasses import replace
 from datetime import date
 from pathlib import Path
 
 import numpy as np
 
-from .generator import (BENTON_PARAMETERS_FILE, MONTHS, RESIDUAL_VARIABLES, GeneratorParameters,
-                        conditional_field_names, dew_point_degc, generate_seasons, smooth_daily)
+from .generator import (BENTON_PARAMETERS_FILE, MONTHS, PARAMETERS_SUFFIX, RESIDUAL_VARIABLES,
+                        GeneratorParameters, conditional_field_names, dew_point_degc, generate_seasons,
+                        smooth_daily)
 from .readers import read_agweathernet_csv, read_dssat_wth
-from .series import WeatherError, WeatherSeries
+from .series import VARIABLES, WeatherError, WeatherSeries
 
 DEFAULT_DATA_DIR = Path("../shared/data")
 DEFAULT_AGWEATHERNET = ("agweathernet/benton_e_2000-04-01_2000-09-30.csv",)
@@ -32,6 +39,11 @@ WET_DAY_THRESHOLD_MM = 0.25
 MIN_DAYS_PER_STATISTIC = 10
 # Mean month length (February of a leap year counted a quarter), days: monthly totals = daily mean x this.
 MONTH_LENGTH_DAYS = np.array([31, 28.25, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
+# Metadata of a fit without humidity or wind data: how the generator makes them instead.
+FAO56_VAP_RULE = ("no vapour pressure in the data: generated as e_a = e0(TMIN) (dew point taken as TMIN, "
+                  "FAO-56 eq. 48), as the task fills real seasons without it")
+FAO56_WIND_RULE = ("no wind in the data: generated as 2 m/s at 2 m (FAO-56 missing-data rule), as the task "
+                   "fills real seasons without it")
 MONTH_NAMES = ("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "Oct", "Nov", "Dec")
 
 
@@ -43,8 +55,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dssat", nargs="*", default=list(DEFAULT_DSSAT), metavar="WTH",
                         help="DSSAT .WTH files (default: Paterson, WA, 1992-1995)")
     parser.add_argument("--name", default="benton", help="label of the fitted parameters (default: %(default)s)")
-    parser.add_argument("--out", type=Path, default=BENTON_PARAMETERS_FILE,
-                        help="JSON file to write (default: the packaged benton_generator.json)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="JSON file to write (default: the packaged <name>_generator.json)")
     parser.add_argument("--check-seasons", type=int, default=500, metavar="N",
                         help="years generated to compare with the observations (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the comparison run (default: %(default)s)")
@@ -56,6 +68,55 @@ def load_observed(data_dir: Path, agweathernet=DEFAULT_AGWEATHERNET, dssat=DEFAU
     """
     return ([replace(read_agweathernet_csv(Path(data_dir) / name), source=str(name)) for name in agweathernet]
             + [replace(read_dssat_wth(Path(data_dir) / name), source=str(name)) for name in dssat])
+
+
+def distinct_station_days(series_list: list[WeatherSeries]) -> tuple[list[WeatherSeries], list[dict]]:
+    """``series_list`` with repeated weather removed, and one record per removal (source, what, days,
+    same_as).
+
+    Series are taken in order, and each calendar year of a series is one block:
+
+    - a block whose values (every variable, day by day; dates left out) equal an earlier block's is a
+      repeat: its days become missing (NaN). A series left without any value is dropped;
+    - a day whose date and values an earlier series already gave is a repeat too (a partial year copied);
+    - a day whose date an earlier series gave with other values is a WeatherError naming both files: two
+      versions of the same day (a heated plot's temperatures, an offset TMIN) cannot both be the climate.
+    """
+    kept, repeats = [], []
+    block_sources: dict[str, str] = {}
+    day_sources: dict[np.datetime64, tuple[str, bytes]] = {}
+    for series in series_list:
+        values = np.nan_to_num(np.stack([getattr(series, name) for name in VARIABLES], axis=1), nan=-1e9)
+        has_value = np.isfinite(np.stack([getattr(series, name) for name in VARIABLES])).any(axis=0)
+        repeat = np.zeros(len(series), dtype=bool)
+        years = series.dates.astype("datetime64[Y]")
+        for year in np.unique(years[has_value]):
+            block = (years == year) & has_value
+            key = hashlib.sha256(values[block].tobytes()).hexdigest()
+            if key in block_sources:
+                repeat |= block
+                repeats.append({"source": series.source, "what": f"year {year}", "days": int(block.sum()),
+                                "same_as": block_sources[key]})
+            else:
+                block_sources[key] = f"{series.source}, year {year}"
+        same_day_sources: dict[str, int] = {}
+        for i in np.flatnonzero(has_value & ~repeat):
+            earlier_source, earlier_row = day_sources.setdefault(series.dates[i], (series.source, values[i].tobytes()))
+            if earlier_source == series.source:
+                continue
+            if earlier_row != values[i].tobytes():
+                raise WeatherError(f"{series.source} and {earlier_source} give different weather for "
+                                   f"{series.dates[i]}: two versions of one day cannot both be fitted")
+            repeat[i] = True
+            same_day_sources[earlier_source] = same_day_sources.get(earlier_source, 0) + 1
+        repeats += [{"source": series.source, "what": "days of the same dates", "days": days, "same_as": earlier}
+                    for earlier, days in same_day_sources.items()]
+        if not repeat.any():
+            kept.append(series)
+        elif (has_value & ~repeat).any():
+            kept.append(replace(series, **{name: np.where(repeat, np.nan, getattr(series, name))
+                                           for name in VARIABLES}))
+    return kept, repeats
 
 
 class _Days:
@@ -123,7 +184,9 @@ def _gamma_moments(values: np.ndarray) -> tuple[float, float]:
 
 def fit_parameters(series_list: list[WeatherSeries], name: str,
                    threshold_mm: float = WET_DAY_THRESHOLD_MM) -> GeneratorParameters:
-    """Fit the generator to ``series_list`` (pooled by calendar month); the site is the first series'."""
+    """Fit the generator to the distinct station-days of ``series_list`` (pooled by calendar month); the
+    site is the first series'."""
+    series_list, repeats = distinct_station_days(series_list)
     days = _Days(series_list, threshold_mm)
     fitter = _Fitter(days)
     p_wet_after_dry = fitter.monthly("p_wet_after_dry", days.wet.astype(float),
@@ -152,33 +215,55 @@ def fit_parameters(series_list: list[WeatherSeries], name: str,
     lag1 = np.array([[np.corrcoef(residuals[i, pairs], residuals[j, pairs - 1])[0, 1] for j in range(3)]
                      for i in range(3)])
 
-    depression = days.tmin_degc - dew_point_degc(days.vap_hpa)
     everyday = np.ones(len(days.month), dtype=bool)
-    depression_mean = fitter.monthly("dew_point_depression_mean_degc", depression, everyday, np.mean)
-    depression_sd = fitter.monthly("dew_point_depression_sd_degc", depression, everyday, _sd)
-    wind_gamma = fitter.monthly("wind", days.wind_m_s, everyday, _gamma_moments)
+    # No humidity (wind) data at all: no parameters; the generator fills by FAO-56 like the task does.
+    depression_mean = depression_sd = wind_shape = wind_scale = None
+    fao56_rules = {}
+    if np.isfinite(days.vap_hpa).any():
+        depression = days.tmin_degc - dew_point_degc(days.vap_hpa)
+        depression_mean = fitter.monthly("dew_point_depression_mean_degc", depression, everyday, np.mean)
+        depression_sd = fitter.monthly("dew_point_depression_sd_degc", depression, everyday, _sd)
+    else:
+        fao56_rules["vap_hpa"] = FAO56_VAP_RULE
+    if np.isfinite(days.wind_m_s).any():
+        wind_gamma = fitter.monthly("wind", days.wind_m_s, everyday, _gamma_moments)
+        wind_shape, wind_scale = [g[0] for g in wind_gamma], [g[1] for g in wind_gamma]
+    else:
+        fao56_rules["wind_m_s"] = FAO56_WIND_RULE
 
     metadata = {
         "fitted_by": "crop-sim fit-weather (crop_sim_ros.weather.fit)",
         "data": "sources are relative to the reference data directory (shared/data, see its README.md)",
-        "fitted_from": [{"source": s.source, "first_day": str(s.start), "last_day": str(s.end), "days": len(s),
-                         "variables": [v for v in ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "vap_hpa",
-                                                   "wind_m_s") if np.isfinite(getattr(s, v)).any()]}
-                        for s in series_list],
+        "fitted_from": [_data_summary(s) for s in series_list],
         "min_days_per_statistic": MIN_DAYS_PER_STATISTIC,
         "pooled_months": fitter.pooling,
         "note": "monthly statistics pool all files' days of a calendar month; a month listed under "
                 "pooled_months had fewer than min_days_per_statistic own days of that variable and uses "
                 "the listed (nearest) months' days instead",
     }
+    # Only when they apply, so that a fit with neither writes the same file as before they existed.
+    if repeats:
+        metadata["repeats_not_fitted"] = repeats
+    if fao56_rules:
+        metadata["fao56_missing_data_rules"] = fao56_rules
     return GeneratorParameters(
         name=name, site=series_list[0].site, wet_day_threshold_mm=threshold_mm,
         p_wet_after_dry=p_wet_after_dry, p_wet_after_wet=p_wet_after_wet,
         rain_excess_shape=[g[0] for g in rain_gamma], rain_excess_scale_mm=[g[1] for g in rain_gamma],
         residual_lag0_correlation=lag0, residual_lag1_correlation=lag1,
         dew_point_depression_mean_degc=depression_mean, dew_point_depression_sd_degc=depression_sd,
-        wind_shape=[g[0] for g in wind_gamma], wind_scale_m_s=[g[1] for g in wind_gamma],
+        wind_shape=wind_shape, wind_scale_m_s=wind_scale,
         metadata=metadata, **values)
+
+
+def _data_summary(series: WeatherSeries) -> dict:
+    """Source, first and last day with data, days with data and the variables of ``series``."""
+    has_value = np.isfinite(np.stack([getattr(series, name) for name in VARIABLES])).any(axis=0)
+    with_data = series.dates[has_value]
+    return {"source": series.source, "first_day": str(with_data[0]), "last_day": str(with_data[-1]),
+            "days": int(has_value.sum()),
+            "variables": [v for v in ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "vap_hpa", "wind_m_s")
+                          if np.isfinite(getattr(series, v)).any()]}
 
 
 # name -> (how it is computed, unit)
@@ -235,11 +320,18 @@ def run(args: argparse.Namespace) -> int:
     except WeatherError as error:
         print(f"fit-weather: {error}")
         return 1
-    params.to_json(args.out)
-    print(f"wrote {args.out} (fitted from {', '.join(s.source for s in observed)} under {args.data})")
+    out = args.out or BENTON_PARAMETERS_FILE.with_name(args.name + PARAMETERS_SUFFIX)
+    params.to_json(out)
+    print(f"wrote {out} (fitted from {', '.join(s.source for s in observed)} under {args.data})")
+    for repeat in params.metadata.get("repeats_not_fitted", []):
+        print(f"  not fitted, a repeat: {repeat['source']} {repeat['what']} ({repeat['days']} days) "
+              f"= {repeat['same_as']}")
     for label, months in params.metadata["pooled_months"].items():
         print(f"  {label}: " + ", ".join(f"{m} from {'+'.join(p)}" for m, p in months.items()))
+    for rule in params.metadata.get("fao56_missing_data_rules", {}).values():
+        print(f"  {rule}")
     generated = generate_seasons(params, date(2001, 1, 1), 365, args.check_seasons, args.seed)
-    print(f"\nmonthly statistics, observed / generated ({args.check_seasons} years, seed {args.seed}):")
-    print(comparison_table(monthly_statistics(observed), monthly_statistics(generated)))
+    print(f"\nmonthly statistics, observed (distinct station-days) / generated ({args.check_seasons} years, "
+          f"seed {args.seed}):")
+    print(comparison_table(monthly_statistics(distinct_station_days(observed)[0]), monthly_statistics(generated)))
     return 0

@@ -16,6 +16,14 @@ Per calendar month (parameters are monthly steps):
   standard deviation), capped at the day's mean temperature (TMAX + TMIN) / 2;
 - wind at 2 m: gamma distributed (monthly shape, scale in m s-1).
 
+A site whose data had no humidity (or no wind) has no such parameters (``None``, ``null`` in the JSON): its
+generated seasons get vapour pressure (or wind) the way the task fills a real season without them, by
+FAO-56's missing-data rules (``WeatherSeries.with_fao56_fills``: e_a = e0(TMIN), wind 2 m/s), and the
+series' ``filled`` says so.
+
+Parameter sets are JSON files ``<name>_generator.json`` beside this module, one per climate, each fitted by
+``crop-sim fit-weather`` (its metadata names the data); :func:`generator_parameters` reads one by name.
+
 No separate daily mean temperature is drawn: ``tavg_degc`` is NaN, and users take (TMAX + TMIN) / 2.
 
 Internally every variable is a numpy array of shape (days, N); a season is one column. Imports neither
@@ -40,7 +48,14 @@ RESIDUAL_VARIABLES = ("tmax", "tmin", "srad")
 RESIDUAL_UNITS = {"tmax": "degc", "tmin": "degc", "srad": "mj_m2"}
 # SRAD never falls below this (MJ m-2 d-1): even a dark overcast day has some light.
 MIN_SRAD_MJ_M2 = 0.1
-BENTON_PARAMETERS_FILE = Path(__file__).with_name("benton_generator.json")
+PARAMETERS_SUFFIX = "_generator.json"
+BENTON_PARAMETERS_FILE = Path(__file__).with_name("benton" + PARAMETERS_SUFFIX)
+# Every packaged parameter set by name: the JSON files beside this module.
+GENERATOR_NAMES = tuple(sorted(path.name.removesuffix(PARAMETERS_SUFFIX)
+                               for path in Path(__file__).parent.glob("*" + PARAMETERS_SUFFIX)))
+# Monthly fields a site without humidity (the first pair) or wind (the second pair) data leaves at None.
+OPTIONAL_PAIRS = (("dew_point_depression_mean_degc", "dew_point_depression_sd_degc"),
+                  ("wind_shape", "wind_scale_m_s"))
 
 
 def conditional_field_names(variable: str) -> tuple[str, str, str, str]:
@@ -87,6 +102,8 @@ def clear_sky_radiation_mj_m2(day_of_year, latitude_deg: float, elevation_m: flo
 
 
 Monthly = tuple[float, ...]
+# Monthly values, or None where the data had none of the variable (see OPTIONAL_PAIRS).
+OptionalMonthly = Monthly | None
 Matrix3 = tuple[tuple[float, float, float], ...]
 
 
@@ -114,10 +131,14 @@ class GeneratorParameters:
                                             residuals on the same day
     residual_lag1_correlation      -        3 x 3 correlation, row: today's residual, column:
                                             yesterday's
-    dew_point_depression_mean_degc degC     monthly mean of TMIN - dew point
-    dew_point_depression_sd_degc   degC     monthly standard deviation of TMIN - dew point
-    wind_shape                     -        monthly gamma shape of the daily mean wind at 2 m
-    wind_scale_m_s                 m s-1    monthly gamma scale of the daily mean wind at 2 m
+    dew_point_depression_mean_degc degC     monthly mean of TMIN - dew point (None: no humidity data,
+                                            e_a = e0(TMIN) by FAO-56's missing-data rule)
+    dew_point_depression_sd_degc   degC     monthly standard deviation of TMIN - dew point (None with
+                                            the mean)
+    wind_shape                     -        monthly gamma shape of the daily mean wind at 2 m (None: no
+                                            wind data, 2 m s-1 by FAO-56's missing-data rule)
+    wind_scale_m_s                 m s-1    monthly gamma scale of the daily mean wind at 2 m (None with
+                                            the shape)
     metadata                       -        free-form provenance (data fitted from, fills); not compared
     ============================== ======== ===========================================================
     """
@@ -143,15 +164,19 @@ class GeneratorParameters:
     srad_sd_wet_mj_m2: Monthly
     residual_lag0_correlation: Matrix3
     residual_lag1_correlation: Matrix3
-    dew_point_depression_mean_degc: Monthly
-    dew_point_depression_sd_degc: Monthly
-    wind_shape: Monthly
-    wind_scale_m_s: Monthly
+    dew_point_depression_mean_degc: OptionalMonthly
+    dew_point_depression_sd_degc: OptionalMonthly
+    wind_shape: OptionalMonthly
+    wind_scale_m_s: OptionalMonthly
     metadata: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
+        for pair in OPTIONAL_PAIRS:
+            if (getattr(self, pair[0]) is None) != (getattr(self, pair[1]) is None):
+                raise WeatherError(f"generator parameters {self.name}: {pair[0]} and {pair[1]} must both be "
+                                   f"given or both be null")
         for item in fields(self):
-            if item.type != "Monthly":
+            if item.type not in ("Monthly", "OptionalMonthly") or getattr(self, item.name) is None:
                 continue
             values = tuple(float(v) for v in getattr(self, item.name))
             if len(values) != MONTHS or not all(np.isfinite(values)):
@@ -187,9 +212,27 @@ class GeneratorParameters:
             raise WeatherError(f"{path}: not generator parameters: {error}") from None
 
 
+    @property
+    def fao56_filled(self) -> tuple[str, ...]:
+        """The variables (vap_hpa, wind_m_s) generated by FAO-56's missing-data rules, not drawn."""
+        return tuple(variable for variable, pair in zip(("vap_hpa", "wind_m_s"), OPTIONAL_PAIRS)
+                     if getattr(self, pair[0]) is None)
+
+
+def generator_parameters(name: str) -> GeneratorParameters:
+    """The packaged parameter set ``name`` (one of :data:`GENERATOR_NAMES`); WeatherError lists the known
+    names for an unknown one."""
+    if name not in GENERATOR_NAMES:
+        raise WeatherError(f"unknown generator parameters {name!r}; known: {', '.join(GENERATOR_NAMES)}")
+    params = GeneratorParameters.from_json(Path(__file__).with_name(name + PARAMETERS_SUFFIX))
+    if params.name != name:
+        raise WeatherError(f"{name}{PARAMETERS_SUFFIX}: holds parameters named {params.name!r}, not {name!r}")
+    return params
+
+
 def benton_parameters() -> GeneratorParameters:
     """Parameters fitted to Benton County, WA (``crop-sim fit-weather``; see the file's metadata)."""
-    return GeneratorParameters.from_json(BENTON_PARAMETERS_FILE)
+    return generator_parameters("benton")
 
 
 def _monthly(params: GeneratorParameters, name: str, month_index: np.ndarray) -> np.ndarray:
@@ -248,14 +291,18 @@ def _generate_arrays(params: GeneratorParameters, dates: np.ndarray, n_seasons: 
     srad_max = clear_sky_radiation_mj_m2(day_of_year, params.site.latitude_deg, params.site.elevation_m)
     srad_mj_m2 = np.clip(values["srad"], MIN_SRAD_MJ_M2, srad_max[:, None])
 
-    depression_degc = (_monthly(params, "dew_point_depression_mean_degc", month_index)
-                       + _monthly(params, "dew_point_depression_sd_degc", month_index)
-                       * rng.standard_normal((days, n_seasons)))
-    dew_point = np.minimum(tmin_degc - depression_degc, (tmax_degc + tmin_degc) / 2)
-    wind_m_s = rng.gamma(_monthly(params, "wind_shape", month_index),
-                         _monthly(params, "wind_scale_m_s", month_index), size=(days, n_seasons))
+    # Without parameters (no data) VAP and wind stay missing here; generate_seasons fills them by FAO-56.
+    vap_hpa = wind_m_s = np.full((days, n_seasons), np.nan)
+    if "vap_hpa" not in params.fao56_filled:
+        depression_degc = (_monthly(params, "dew_point_depression_mean_degc", month_index)
+                           + _monthly(params, "dew_point_depression_sd_degc", month_index)
+                           * rng.standard_normal((days, n_seasons)))
+        vap_hpa = saturation_vapour_pressure_hpa(np.minimum(tmin_degc - depression_degc, (tmax_degc + tmin_degc) / 2))
+    if "wind_m_s" not in params.fao56_filled:
+        wind_m_s = rng.gamma(_monthly(params, "wind_shape", month_index),
+                             _monthly(params, "wind_scale_m_s", month_index), size=(days, n_seasons))
     return {"tmax_degc": tmax_degc, "tmin_degc": tmin_degc, "srad_mj_m2": srad_mj_m2, "rain_mm": rain_mm,
-            "vap_hpa": saturation_vapour_pressure_hpa(dew_point), "wind_m_s": wind_m_s}
+            "vap_hpa": vap_hpa, "wind_m_s": wind_m_s}
 
 
 def generate_seasons(params: GeneratorParameters, start: date, days: int, n_seasons: int,
@@ -264,6 +311,7 @@ def generate_seasons(params: GeneratorParameters, start: date, days: int, n_seas
 
     The same integer seed gives the same seasons; a ``numpy.random.Generator`` is advanced. Each series'
     source reads ``generator(<name>, seed=<seed>, season=<k>)`` (no season index when n_seasons is 1).
+    Variables the parameters have no data for are filled by FAO-56's rules and listed in ``filled``.
     """
     if days < 1 or n_seasons < 1:
         raise WeatherError(f"generator({params.name}): days ({days}) and n_seasons ({n_seasons}) must be >= 1")
@@ -274,8 +322,9 @@ def generate_seasons(params: GeneratorParameters, start: date, days: int, n_seas
     series = []
     for k in range(n_seasons):
         season = "" if n_seasons == 1 else f", season={k}"
-        series.append(make_series(params.site, dates, source=f"generator({params.name}, seed={seed_text}{season})",
-                                  **{name: values[k] for name, values in by_season.items()}))
+        one = make_series(params.site, dates, source=f"generator({params.name}, seed={seed_text}{season})",
+                          **{name: values[k] for name, values in by_season.items()})
+        series.append(one.with_fao56_fills() if params.fao56_filled else one)
     return series
 
 
