@@ -45,7 +45,7 @@ import yaml
 
 from ..model import FieldParameters, Management, UnknownNameError, crop_library, field_parameters
 from ..model.et0 import ET0_METHODS
-from ..weather import Site, WeatherSeries, read_agweathernet_csv, read_dssat_wth
+from ..weather import GENERATOR_NAMES, Site, WeatherSeries, read_agweathernet_csv, read_dssat_wth
 from ..weather.csv_readers import read_plain_csv
 from .layout import EXTENDED, PAPER, ObservationLayout
 from .terms import Economics, FarmLimits
@@ -55,7 +55,8 @@ DEFAULT_DATA_DIR = Path(__file__).resolve().parents[2].parent / "shared" / "data
 SCENARIO_DIR = Path(__file__).with_name("scenarios")
 WEATHER_KINDS = ("generator", "file", "seasons")
 WEATHER_FORMATS = ("agweathernet", "dssat", "csv")
-GENERATOR_PARAMETERS = ("benton",)
+# The weather generator's parameter sets (one per climate, crop_sim_ros/weather/<name>_generator.json).
+GENERATOR_PARAMETERS = GENERATOR_NAMES
 # Every weather variable the task needs each day (the model's four plus what ET0 and the observation use).
 TASK_WEATHER_VARIABLES = ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "vap_hpa", "wind_m_s")
 # Upper bounds of the sizes a scenario sets (see the module docstring).
@@ -268,10 +269,10 @@ class Scenario:
     def load_seasons(self) -> list[WeatherSeries]:
         """Every season of the scenario, prepared for the task (see :meth:`prepare`)."""
         if self.weather.kind == "generator":
-            from ..weather.generator import benton_parameters, generate_seasons  # noqa: PLC0415
+            from ..weather.generator import generate_seasons, generator_parameters  # noqa: PLC0415
 
-            raw = generate_seasons(benton_parameters(), self.sowing_date, self.max_season_days,
-                                   self.weather.n_seasons, self.weather.seed)
+            raw = generate_seasons(generator_parameters(self.weather.generator), self.sowing_date,
+                                   self.max_season_days, self.weather.n_seasons, self.weather.seed)
             return [self.prepare(series) for series in raw]
         return [self.prepare(_read_weather(str(self.season_path(s)), s.format), s.sowing_date)
                 for s in self.weather.seasons]
