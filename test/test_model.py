@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from crop_sim_ros.model import (DailyWeather, Management, Soil, UnknownNameError
                                 zhao2019_library)
 from crop_sim_ros.model import simple
 from crop_sim_ros.model.et0 import penman_monteith, priestley_taylor
+from simple_reference import bucket_day, reference_season
 
 LIBRARY = zhao2019_library()
 
@@ -59,6 +61,27 @@ def test_water_and_canopy_water_responses_by_hand():
     assert simple.canopy_water_response(0.5) == 1.0
 
 
+@pytest.mark.parametrize("f_water, fsw", [(0.0, 0.9), (0.06, 0.96), (0.08, 0.98), (0.099, 0.999), (0.1, 1.0),
+                                          (0.1001, 1.0), (0.12, 1.0)])
+def test_canopy_water_response_switches_at_0_1(f_water, fsw):
+    """fsw = 0.9 + f_water up to f_water = 0.1, 1 above (spec eq. 6): checked on both sides of 0.1."""
+    assert simple.canopy_water_response(f_water) == pytest.approx(fsw, abs=1e-12)
+    assert simple.canopy_water_response(np.array([f_water]))[0] == pytest.approx(fsw, abs=1e-12)
+
+
+def test_severe_drought_shrinks_the_next_days_canopy_by_fsw():
+    # PAW 0 and ET0 8 mm: ARID = 1, f_water = 1 - 0.4 * ARID = 0.6 for potato. With S_water 0.92,
+    # f_water = 0.08 and tomorrow's canopy is 0.98 of its no-stress value (0.9 + 0.08).
+    dry = DailyWeather(np.array([25.0]), np.array([11.0]), np.array([20.0]), np.array([0.0]), np.array([8.0]))
+    params = potato()
+    state = initial_state(params)._replace(plant_available_water_mm=np.array([0.0]))
+    mild, _ = step(params, state, dry, np.array([0.0]))  # f_water 0.6: fsw 1
+    stressed_params = replace(params, water_stress_sensitivity=np.array([0.92]))
+    stressed, flux = step(stressed_params, state, dry, np.array([0.0]))
+    assert flux.f_water[0] == pytest.approx(0.08)
+    assert stressed.fsolar[0] == pytest.approx(0.98 * mild.fsolar[0], rel=1e-12)
+
+
 def test_canopy_cover_is_the_minimum_of_growth_and_senescence_curves():
     # At TT = I50A the growth curve is at half of fSolar_max; senescence is far away.
     assert simple.canopy_cover(500.0, 500.0, 2300.0, 400.0, 0.95) == pytest.approx(0.475)
@@ -82,6 +105,21 @@ def test_water_balance_by_hand():
     assert dry.arid == pytest.approx(1 - 1.92 / 5)
 
 
+@pytest.mark.parametrize("water_input_mm, runoff_mm", [
+    (0.0, 0.0),
+    (28.575, 0.0),                                      # P = 0.2 S: the threshold, no runoff yet
+    (40.0, 11.425 ** 2 / (40.0 + 114.3)),               # (P - 0.2 S)^2 / (P + 0.8 S), S = 142.875 mm
+    (100.0, 71.425 ** 2 / (100.0 + 114.3)),
+    (400.0, 371.425 ** 2 / (400.0 + 114.3)),
+])
+def test_scs_runoff_by_hand(water_input_mm, runoff_mm):
+    flux = simple.water_balance(60.0, water_input_mm, 5.0, simple.runoff_retention_mm(64.0), 0.10, 0.8, 1200.0)
+    assert flux.runoff_mm == pytest.approx(runoff_mm, abs=1e-12)
+    # The rest of the day's water goes on to the bucket: W1 = 60 + P - runoff, drained above 120 mm.
+    w1 = 60.0 + water_input_mm - runoff_mm
+    assert flux.drainage_mm == pytest.approx(0.8 * max(w1 - 120.0, 0.0), abs=1e-12)
+
+
 def test_priestley_taylor_by_hand():
     # Td = 0.6*30 + 0.4*15 = 24; EEQ = 20 * 23.923 * (2.04e-4 - 1.83e-4*0.23) * (24 + 29)
     eeq = 20 * 23.923 * (2.04e-4 - 1.83e-4 * 0.23) * 53
@@ -89,6 +127,22 @@ def test_priestley_taylor_by_hand():
     assert priestley_taylor(40.0, 15.0, 20.0) == pytest.approx(
         20 * 23.923 * (2.04e-4 - 1.83e-4 * 0.23) * (0.6 * 40 + 6 + 29) * (5 * 0.05 + 1.1))
     assert priestley_taylor(0.0, -5.0, 0.0) == pytest.approx(1e-4)
+
+
+@pytest.mark.parametrize("tmax, tmin", [(-8.0, -15.0), (0.0, -6.0), (2.0, -4.0), (4.9, 0.0)])
+def test_priestley_taylor_cold_branch_by_hand(tmax, tmin):
+    # TMAX < 5 degC: ET0 = EEQ * 0.01 exp(0.18 (TMAX + 20)), above the 1e-4 floor at SRAD 15 MJ/m2.
+    eeq = 15.0 * 23.923 * (2.04e-4 - 1.83e-4 * 0.23) * (0.6 * tmax + 0.4 * tmin + 29.0)
+    expected = eeq * 0.01 * math.exp(0.18 * (tmax + 20.0))
+    assert expected > 0.05  # well above the 1e-4 floor
+    assert priestley_taylor(tmax, tmin, 15.0) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("tmax", [5.0, 20.0, 35.0])
+def test_priestley_taylor_branch_edges_use_1_1(tmax):
+    # At TMAX = 5 and 35 degC neither the cold nor the hot branch applies: ET0 = 1.1 EEQ.
+    eeq = 15.0 * 23.923 * (2.04e-4 - 1.83e-4 * 0.23) * (0.6 * tmax + 0.4 * 0.0 + 29.0)
+    assert priestley_taylor(tmax, 0.0, 15.0) == pytest.approx(1.1 * eeq, rel=1e-12)
 
 
 def test_penman_monteith_fao56_example_18():
@@ -101,25 +155,33 @@ def test_penman_monteith_fao56_example_18():
 
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), irrigation=st.floats(0, 100), days=st.integers(1, 60))
-def test_water_balance_closes_every_day(seed, irrigation, days):
+def test_water_balance_closes_every_day_with_independently_computed_fluxes(seed, irrigation, days):
+    """Every day's runoff, drainage, transpiration and PAW equal the spec's bucket written out on its own
+    (tests/simple_reference.py), and with those fluxes water is conserved."""
     rng = np.random.default_rng(seed)
     n = 8
     params = repeat_parameters(potato(), n)
     state = initial_state(params)
     for _ in range(days):
         weather = DailyWeather(rng.uniform(-5, 45, n), rng.uniform(-15, 0, n), rng.uniform(0, 35, n),
-                               rng.exponential(5, n) * (rng.random(n) < 0.3), rng.uniform(1e-4, 12, n))
+                               rng.exponential(15, n) * (rng.random(n) < 0.3), rng.uniform(1e-4, 12, n))
         irrigation_mm = rng.uniform(0, irrigation, n)
         before = state.plant_available_water_mm
         state, flux = step(params, state, weather, irrigation_mm)
-        balance = (flux.runoff_mm + flux.drainage_mm + flux.transpiration_mm
-                   + state.plant_available_water_mm - before)
-        np.testing.assert_allclose(balance, weather.rain_mm + irrigation_mm, rtol=0, atol=1e-9)
+        expected = np.array([bucket_day(before[i], weather.rain_mm[i] + irrigation_mm[i], weather.et0_mm[i],
+                                        0.10, 64.0, 0.8, 1200.0) for i in range(n)])
+        runoff, drainage, transpiration, paw, arid = expected.T
+        np.testing.assert_allclose(flux.runoff_mm, runoff, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(flux.drainage_mm, drainage, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(flux.transpiration_mm, transpiration, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(state.plant_available_water_mm, paw, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(flux.arid, arid, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(runoff + drainage + transpiration + paw - before,
+                                   weather.rain_mm + irrigation_mm, rtol=0, atol=1e-9)
         assert np.all(state.plant_available_water_mm >= 0)
         # Above capacity only the undrained share (1 - DDC) of today's excess may remain (reference bucket).
-        excess = np.maximum(before + weather.rain_mm + irrigation_mm - flux.runoff_mm - params.capacity_mm, 0)
-        limit = params.capacity_mm + (1 - params.deep_drainage_coefficient) * excess
-        assert np.all(state.plant_available_water_mm <= limit + 1e-9)
+        excess = np.maximum(before + weather.rain_mm + irrigation_mm - runoff - 120.0, 0)
+        assert np.all(state.plant_available_water_mm <= 120.0 + 0.2 * excess + 1e-9)
 
 
 @pytest.mark.parametrize("case", ["heat", "dark", "deluge", "flood_irrigation", "frost"])
@@ -209,10 +271,13 @@ def test_fsolar_follows_min_of_curves_without_an_invented_switch():
     params = potato(Management(co2_ppm=369.0, water_stress=False))
     days = 170
     result = simulate_season(params, *constant_weather(days, rain=5.0))
-    tt = result.thermal_time_degc_d[:, 0]
     mature_day = result.final_state.maturity_day[0]
-    expected = simple.canopy_cover(tt[1:mature_day + 1], 500.0, 2300.0, 400.0, 0.95)
-    np.testing.assert_allclose(result.fsolar[1:mature_day + 1, 0], expected, rtol=1e-12)
+    # Tmean 18 degC: TT(d) = 14 d. No stress, so I50B stays 400; spec eq. 7 written out.
+    tt = 14.0 * np.arange(1, mature_day + 1)
+    grow = 0.95 / (1 + np.exp(-0.01 * (tt - 500.0)))
+    senesce = 0.95 / (1 + np.exp(0.01 * (tt - (2300.0 - 400.0))))
+    np.testing.assert_allclose(result.fsolar[1:mature_day + 1, 0], np.minimum(grow, senesce), rtol=1e-12)
+    assert mature_day == 164  # the last day with TT = 14 d <= 2300
 
 
 def test_i50b_takes_the_larger_increment_not_the_sum_and_from_day_one():
@@ -263,7 +328,64 @@ def test_irrigation_increases_yield_in_the_papers_season_shape():
     dry = simulate_season(potato(), *weather, 0.0).harvested_yield_kg_ha[0]
     wet = simulate_season(potato(), *weather, 10.0).harvested_yield_kg_ha[0]
     assert wet > 1.5 * dry
-    assert 5_000 < wet < 30_000  # kg/ha: a potato dry yield, not g/m2 and not inflated by CO2
+    # kg/ha as the spec computes it (not g/m2, not inflated by CO2): the independent formulation's yield.
+    for irrigation_mm, ours in ((0.0, dry), (10.0, wet)):
+        expected = reference_season(*(list(w) for w in weather), [irrigation_mm] * days).yield_kg_ha
+        assert ours == pytest.approx(expected, rel=1e-12)
+
+
+def _season_case(case: str, days: int = 200):
+    """(weather arrays, irrigation, Management, reference_season keywords) of a named test season."""
+    rng = np.random.default_rng(sum(map(ord, case)))
+    weather = [rng.uniform(18, 36, days), rng.uniform(2, 16, days), rng.uniform(8, 30, days),
+               rng.exponential(6.0, days) * (rng.random(days) < 0.2), rng.uniform(2, 9, days)]
+    irrigation = rng.uniform(0, 8, days) * (rng.random(days) < 0.5)
+    management, keywords = Management(co2_ppm=369.0), {}
+    if case == "rainfed":
+        irrigation = np.zeros(days)
+    elif case == "heat_senescence":  # TMAX 44 degC: I50B +45 degC d a day, the canopy dies before Tsum
+        weather[0], weather[1] = np.full(days, 44.0), np.full(days, 20.0)
+    elif case == "harvest_date":
+        management, keywords = Management(co2_ppm=369.0, harvest_day=75), {"harvest_day": 75}
+    elif case == "co2_550_no_water_stress":
+        management = Management(co2_ppm=550.0, water_stress=False)
+        keywords = {"co2_ppm": 550.0, "water_stress": False}
+    elif case == "flood":
+        weather[3] = weather[3] * 20
+        irrigation = np.full(days, 60.0)
+    return weather, irrigation, management, keywords
+
+
+@pytest.mark.parametrize("case", ["irrigated", "rainfed", "heat_senescence", "harvest_date",
+                                  "co2_550_no_water_stress", "flood"])
+def test_whole_season_equals_an_independent_formulation_of_the_spec(case):
+    """Every daily state and flux, the maturity day and the yield equal the spec's equations written out on
+    their own in plain Python (test/simple_reference.py)."""
+    weather, irrigation, management, keywords = _season_case(case)
+    result = simulate_season(potato(management), *weather, irrigation)
+    expected = reference_season(*(list(w) for w in weather), list(irrigation), **keywords)
+    assert expected.maturity_day is not None
+    assert result.final_state.maturity_day[0] == expected.maturity_day
+    assert result.harvested_yield_kg_ha[0] == pytest.approx(expected.yield_kg_ha, rel=1e-12)
+    days = len(irrigation)
+    for ours, theirs in (("thermal_time_degc_d", "thermal_time_degc_d"), ("biomass_kg_ha", "biomass_kg_ha"),
+                         ("fsolar", "fsolar"), ("plant_available_water_mm", "paw_mm"), ("runoff_mm", "runoff_mm"),
+                         ("drainage_mm", "drainage_mm"), ("transpiration_mm", "transpiration_mm"),
+                         ("arid", "arid")):
+        np.testing.assert_allclose(getattr(result, ours)[:, 0], getattr(expected, theirs)[:days], rtol=1e-12,
+                                   atol=1e-12, err_msg=ours)
+
+
+def test_maturity_by_senescence_is_the_day_fsolar_falls_to_0_005():
+    weather, irrigation, management, _ = _season_case("heat_senescence")
+    result = simulate_season(potato(management), *weather, irrigation)
+    day = result.final_state.maturity_day[0]
+    fsolar, tt = result.fsolar[:, 0], result.thermal_time_degc_d[:, 0]
+    # The first day whose fSolar fell and is <= 0.005; thermal time is far from Tsum.
+    assert fsolar[day] <= 0.005 < fsolar[day - 1]
+    assert not np.any((fsolar[1:day] <= 0.005) & (np.diff(fsolar[:day]) < 0))
+    assert tt[day] < 0.5 * 2300.0
+    assert day == 34  # by hand: TT(d) = 28 d, I50B(d) = 400 + 45.45 d; fSolar(34) = 0.0038 <= 0.005 < fSolar(33)
 
 
 # --- bad input --------------------------------------------------------------------------------------
