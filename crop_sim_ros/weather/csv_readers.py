@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 from refet.calcs import actual_vapor_pressure, air_pressure
 
+from .readers import read_weather_text
 from .series import Site, WeatherError, WeatherSeries, make_series, saturation_vapour_pressure_hpa
 
 PLAIN_REQUIRED = ("date", "tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm")
@@ -54,13 +55,6 @@ NASA_UNITS = {
 }
 # Unit assumed when the header does not list a column (the API's current default units).
 NASA_DEFAULT_UNITS = {"ALLSKY_SFC_SW_DWN": "MJ/m^2/day", "QV2M": "g/kg"}
-
-
-def _read_lines(path: Path) -> list[str]:
-    try:
-        return path.read_text(encoding="utf-8", errors="replace").splitlines()
-    except OSError as error:
-        raise WeatherError(f"{path}: cannot read: {error}") from None
 
 
 def _cells(line: str) -> list[str]:
@@ -109,7 +103,7 @@ def read_plain_csv(path: str | Path, site: Site | None = None) -> WeatherSeries:
     """Read the plain daily CSV (see the module docstring); ``site`` overrides the comment lines."""
     path = Path(path)
     source = str(path)
-    lines = _read_lines(path)
+    lines = read_weather_text(path).splitlines()
     comments: dict[str, tuple[int, str]] = {}
     header_index = None
     for index, line in enumerate(lines):
@@ -208,7 +202,7 @@ def read_nasa_power_csv(path: str | Path, site: Site | None = None) -> WeatherSe
     """Read a NASA POWER daily point CSV (see the module docstring); ``site`` overrides the header's."""
     path = Path(path)
     source = str(path)
-    lines = _read_lines(path)
+    lines = read_weather_text(path).splitlines()
     header_index, units, location, missing = _nasa_header(lines, source)
     if site is None:
         absent = [key for key, value in location.items() if value is None]

@@ -5,11 +5,16 @@ naming the file, line and column of the first problem.
   SRAD MJ m-2, TMAX/TMIN degC, RAIN mm; optional DEWP degC, WIND km d-1, VPRS/VAPR hPa/kPa); -99 and blank
   fixed-width cells are missing; several years may come as blocks out of order.
 - :func:`read_agweathernet_csv`: AgWeatherNet daily CSV export (units in the header; "NA" is missing).
+
+Every reader takes UTF-8 text, with or without a byte-order mark, and UTF-16 or UTF-32 with one
+(:func:`read_weather_text`); other bytes are a WeatherError naming the encoding problem.
 """
 
 from __future__ import annotations
 
+import codecs
 import csv
+import io
 import math
 from datetime import date, timedelta
 from pathlib import Path
@@ -26,6 +31,32 @@ DOS_END_OF_FILE = "\x1a"
 KM_PER_DAY_PER_M_S = 86.4
 # Two-digit DSSAT years up to this belong to the 2000s (the SIMPLE set spans 1970-2009).
 DSSAT_CENTURY_PIVOT = 40
+
+
+# Byte-order marks and their encodings; UTF-32 first: its little-endian mark begins with UTF-16's.
+_BYTE_ORDER_MARKS = ((codecs.BOM_UTF32_LE, "utf-32"), (codecs.BOM_UTF32_BE, "utf-32"), (codecs.BOM_UTF8, "utf-8-sig"),
+                     (codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16"))
+
+
+def read_weather_text(path: str | Path) -> str:
+    """The text of a weather file: UTF-8 (a byte-order mark is dropped), or UTF-16 / UTF-32 with a byte-order
+    mark. WeatherError names the file and the problem otherwise (unreadable, not UTF-8, or UTF-16 without a
+    mark, whose NUL bytes would otherwise turn into confusing column errors)."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as error:
+        raise WeatherError(f"{path}: cannot read: {error}") from None
+    encoding = next((name for mark, name in _BYTE_ORDER_MARKS if data.startswith(mark)), "utf-8")
+    try:
+        text = data.decode(encoding)
+    except UnicodeDecodeError as error:
+        line = data.count(b"\n", 0, error.start) + 1
+        raise WeatherError(f"{path}, line {line}: byte {error.start} (0x{data[error.start]:02x}) is not {encoding} "
+                           f"text; save the file as UTF-8") from None
+    if "\x00" in text:
+        raise WeatherError(f"{path}, line {text.count(chr(10), 0, text.index(chr(0))) + 1}: NUL characters: "
+                           "UTF-16 or UTF-32 text without a byte-order mark? Save the file as UTF-8")
+    return text
 
 
 def dssat_date(code: str | int, source: str = "date") -> date:
@@ -55,10 +86,7 @@ def read_dssat_wth(path: str | Path) -> WeatherSeries:
     """Read a DSSAT ``.WTH`` file (see the module docstring)."""
     path = Path(path)
     source = str(path)
-    try:
-        lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
-    except OSError as error:
-        raise WeatherError(f"{source}: cannot read: {error}") from None
+    lines = read_weather_text(path).splitlines()
     site_header = next((i for i, line in enumerate(lines) if line.lstrip().startswith("@") and "INSI" in line), None)
     if site_header is None or site_header + 1 >= len(lines):
         raise WeatherError(f"{source}: no '@ INSI LAT LONG ELEV' site header")
@@ -183,11 +211,7 @@ def read_agweathernet_csv(path: str | Path, site: Site = BENTON_E_SITE) -> Weath
     """Read an AgWeatherNet daily CSV export. Vapour pressure comes from the 1.5 m dew point."""
     path = Path(path)
     source = str(path)
-    try:
-        with path.open(newline="", encoding="utf-8", errors="replace") as handle:
-            rows = list(csv.reader(handle))
-    except OSError as error:
-        raise WeatherError(f"{source}: cannot read: {error}") from None
+    rows = list(csv.reader(io.StringIO(read_weather_text(path), newline="")))
     if not rows:
         raise WeatherError(f"{source}: empty file")
     header = rows[0]
@@ -226,7 +250,6 @@ def read_agweathernet_csv(path: str | Path, site: Site = BENTON_E_SITE) -> Weath
 
 def read_agweathernet_reference_et0(path: str | Path) -> np.ndarray:
     """The station's own Penman-Monteith ETo column, mm d-1 (a cross-check for ours)."""
-    with Path(path).open(newline="", encoding="utf-8", errors="replace") as handle:
-        rows = list(csv.reader(handle))[1:]
+    rows = list(csv.reader(io.StringIO(read_weather_text(path), newline="")))[1:]
     index = _AWN_COLUMNS["eto_mm"]
     return np.array([math.nan if r[index] in ("NA", "") else float(r[index]) for r in rows if r], dtype=float)
