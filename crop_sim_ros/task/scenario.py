@@ -26,7 +26,10 @@ environment reports the fills in ``info["weather_filled"]``.
 Built-in scenarios: ``benton-generated`` (the default; generated Benton County weather), ``benton-2000``
 (the seed paper's season: AgWeatherNet Benton E., 2000), ``paterson-1992`` .. ``paterson-1995`` (held-out
 real seasons of the SIMPLE input set, DSSAT WAPA9201..9501.WTH, sowing dates of its Treatment.csv), and
-``heldout`` (the five real seasons together, for evaluation). Every built-in scenario grows Russet Burbank
+``heldout`` (the five real seasons together, for evaluation). Other climates: ``gainesville-generated`` and
+``maricopa-generated`` (generated weather of Gainesville, FL and Maricopa, AZ, sown in their winter
+planting seasons), ``gainesville-real`` and ``maricopa-real`` (their distinct real years, sown on the same
+dates). Every built-in scenario grows Russet Burbank
 potato on the Benton County soil at 369 ppm CO2 (the 2000 global mean; the held-out seasons keep it so
 that only the weather differs from training).
 """
