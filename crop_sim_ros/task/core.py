@@ -385,11 +385,14 @@ def observation(params: TaskParams, table: SeasonTable, state: TaskState, rng: n
         # Noise columns: the 8 forecast values and PAW (observation columns 11-19), then biomass, then the
         # dropout draw (if the task has dropouts).
         noise = rng.standard_normal(obs.shape[:-1] + (params.noise_columns,), dtype=np.float32)
-        obs[..., FORECAST.start:PAW + 1] += noise[..., :PAW + 1 - FORECAST.start] * params.noise_std[:-1]
-        obs[..., BIOMASS] += noise[..., len(params.noise_std) - 1] * params.noise_std[-1]
-        np.maximum(obs, params.layout.low, out=obs)
         if params.paw_dropout_probability > 0.0:
             missing = noise[..., -1] < params._dropout_z
+            noise = noise[..., :-1]
+        noise *= params.noise_std
+        obs[..., FORECAST.start:PAW + 1] += noise[..., :-1]
+        obs[..., BIOMASS] += noise[..., -1]
+        np.maximum(obs, params.layout.low, out=obs)
+        if params.paw_dropout_probability > 0.0:
             obs[..., PAW] = np.where(missing, 0.0, obs[..., PAW])
             obs[..., PAW_OBSERVED] = np.where(missing, 0.0, obs[..., PAW_OBSERVED])
     if not params.paw_sensor:

@@ -34,6 +34,7 @@ column number. This module imports only numpy.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,30 +60,34 @@ class ObservationLayout:
 
     columns: tuple[Column, ...]
 
-    @property
+    @functools.cached_property
     def names(self) -> tuple[str, ...]:
         return tuple(c.name for c in self.columns)
 
-    @property
+    @functools.cached_property
     def units(self) -> tuple[str, ...]:
         return tuple(c.unit for c in self.columns)
 
-    @property
+    @functools.cached_property
     def labels(self) -> tuple[str, ...]:
         """``name[unit]`` of every column (the ROS array labels)."""
         return tuple(f"{c.name}[{c.unit}]" for c in self.columns)
 
-    @property
+    @functools.cached_property
     def size(self) -> int:
         return len(self.columns)
 
-    @property
+    @functools.cached_property
     def low(self) -> np.ndarray:
-        return np.array([c.low for c in self.columns], dtype=np.float32)
+        low = np.array([c.low for c in self.columns], dtype=np.float32)
+        low.setflags(write=False)  # shared by every caller
+        return low
 
-    @property
+    @functools.cached_property
     def high(self) -> np.ndarray:
-        return np.full(self.size, np.inf, dtype=np.float32)
+        high = np.full(self.size, np.inf, dtype=np.float32)
+        high.setflags(write=False)
+        return high
 
     def index(self, name: str) -> int:
         """The column of ``name``; KeyError lists the names that exist."""
