@@ -116,3 +116,12 @@ def reference_season(tmax, tmin, srad, rain, et0, irrigation, co2_ppm: float = 3
     out.fsolar.append(fsolar)
     out.paw_mm.append(paw)
     return out
+
+
+def reference_of_table_season(table, weather_names, k: int, irrigation_mm: float, **keywords) -> ReferenceSeason:
+    """Season ``k`` of a task's season table (duck-typed: its ``weather`` laid out by ``weather_names``,
+    ``et0_mm`` and ``n_days``) grown by :func:`reference_season` with constant irrigation, mm/day."""
+    n = int(table.n_days[k])
+    weather = [table.weather[k, :n, list(weather_names).index(name)].tolist()
+               for name in ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm")]
+    return reference_season(*weather, table.et0_mm[k, :n].tolist(), [irrigation_mm] * n, **keywords)

@@ -13,7 +13,7 @@ from crop_sim_ros.task import core
 from crop_sim_ros.task.scenario import (ObservationNoise, Scenario, get_scenario, scenario_from_dict,
                                         scenario_names)
 from crop_sim_ros.weather.readers import dssat_date, read_agweathernet_reference_et0
-from simple_reference import reference_season
+from simple_reference import reference_of_table_season
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 BENTON_FILE = DATA / "agweathernet" / "benton_e_2000-04-01_2000-09-30.csv"
@@ -29,14 +29,9 @@ COST_PER_MM = -1.25e-4  # the paper's C_I, t/ha per mm
 
 
 def reference_of_season(table: core.SeasonTable, k: int, irrigation_mm: float, water_stress: bool = True):
-    """Season ``k`` of ``table`` grown by the independent formulation (test/simple_reference.py) with
-    constant irrigation: the table's weather and ET0 are its inputs."""
-    n = int(table.n_days[k])
-    names = core.WEATHER_NAMES
-    weather = [table.weather[k, :n, names.index(name)].tolist()
-               for name in ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm")]
-    return reference_season(*weather, table.et0_mm[k, :n].tolist(), [irrigation_mm] * n, co2_ppm=369.0,
-                            water_stress=water_stress)
+    """Season ``k`` of ``table`` grown by the independent formulation (test/simple_reference.py)."""
+    return reference_of_table_season(table, core.WEATHER_NAMES, k, irrigation_mm, co2_ppm=369.0,
+                                     water_stress=water_stress)
 
 
 # --- scenarios -------------------------------------------------------------------------------------------

@@ -12,11 +12,15 @@ from gymnasium.vector import AutoresetMode
 
 from crop_sim_ros.task import (ENV_IDS, STATE_INFO_KEYS, STEP_INFO_KEYS, IrrigationEnv, IrrigationVectorEnv,
                                ObservationNoise, get_scenario)
+from crop_sim_ros.task import core
 from crop_sim_ros.weather import read_agweathernet_csv
+from simple_reference import reference_of_table_season
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 BENTON_FILE = DATA / "agweathernet" / "benton_e_2000-04-01_2000-09-30.csv"
 needs_data = pytest.mark.usefixtures("shared_data")  # fails, never skips, without the data
+COST_PER_MM = -1.25e-4  # the paper's C_I, t/ha per mm
+RUSSET_BURBANK_HARVEST_INDEX = 0.90
 
 
 def noise_free(name: str):
@@ -145,8 +149,12 @@ def test_reward_on_harvest_day_is_cost_plus_yield():
     trace = run(env, 0, [7.0] * 400)
     _, reward, terminated, _, info = trace[-1]
     assert terminated
-    assert reward == pytest.approx(-1.25e-4 * 7.0 + info["yield_t_ha"], rel=1e-12)
-    assert 10 < info["yield_t_ha"] < 30  # t/ha of dry potato
+    assert reward == pytest.approx(COST_PER_MM * 7.0 + info["yield_t_ha"], rel=1e-12)
+    # t/ha of dry potato, as the spec's equations give it (test/simple_reference.py), on its maturity day
+    expected = reference_of_table_season(core.scenario_table(env.scenario), core.WEATHER_NAMES, 0, 7.0,
+                                         co2_ppm=369.0)
+    assert info["day"] == expected.maturity_day + 1
+    assert info["yield_t_ha"] == pytest.approx(expected.yield_kg_ha / 1000, rel=1e-9)
     rewards = [t[1] for t in trace[1:]]
     assert info["episode_return"] == pytest.approx(sum(rewards))
     assert info["normalized_return"] == pytest.approx(sum(rewards) / info["potential_yield_t_ha"])
@@ -193,6 +201,70 @@ def test_vector_env_equals_single_envs_on_the_same_seasons():
     assert not running.any()
 
 
+WEATHER_ORDER = ("tmax_degc", "tmin_degc", "tavg_degc", "rain_mm", "srad_mj_m2", "co2_ppm", "vap_hpa", "wind_m_s")
+
+
+def documented_weather(series, day: int) -> list[float]:
+    """The 8 weather values of ``day`` in the documented order (TAVG as (TMAX + TMIN) / 2, CO2 369 ppm)."""
+    values = {name: getattr(series, name)[day] for name in ("tmax_degc", "tmin_degc", "rain_mm", "srad_mj_m2",
+                                                             "vap_hpa", "wind_m_s")}
+    values.update(tavg_degc=(values["tmax_degc"] + values["tmin_degc"]) / 2, co2_ppm=369.0)
+    return [values[name] for name in WEATHER_ORDER]
+
+
+@needs_data
+def test_observation_order_is_the_documented_one_in_both_environments():
+    """Index by index against the weather file read on its own: biomass, TT, day, today's 8, tomorrow's 8,
+    PAW (README "Observation")."""
+    observed = read_agweathernet_csv(BENTON_FILE)
+    scenario = noise_free("benton-2000")
+    single, vector = IrrigationEnv(scenario), IrrigationVectorEnv(1, scenario)
+    obs, info = single.reset(seed=0)
+    vector_obs, _ = vector.reset(seed=0, options={"season": 0})
+    for day in range(40):
+        np.testing.assert_array_equal(vector_obs[0], obs)
+        assert obs[2] == day == info["day"]
+        assert obs[0] == np.float32(info["true_biomass_t_ha"]) and obs[1] == np.float32(info["thermal_time_degc_d"])
+        np.testing.assert_array_equal(obs[3:11], np.float32(documented_weather(observed, day)))
+        np.testing.assert_array_equal(obs[11:19], np.float32(documented_weather(observed, day + 1)))
+        assert obs[19] == np.float32(info["true_paw_mm"])
+        obs, _, _, _, info = single.step(np.array([3.0], dtype=np.float32))
+        vector_obs = vector.step(np.array([3.0]))[0]
+
+
+@needs_data
+def test_vector_env_on_truncated_seasons_pays_no_yield_and_equals_single_envs():
+    """Seasons cut at 30, 45 and 60 days end truncated; the truncating step pays the water cost only
+    (no yield: the crop is not harvested), in the vector environment as in the single one."""
+    scenario = noise_free("benton-2000")
+    weather = read_agweathernet_csv(BENTON_FILE)
+    lengths = (30, 45, 60)
+    short = [weather.window("2000-04-01", n) for n in lengths]
+    actions = np.random.default_rng(1).uniform(0, 20, size=(max(lengths), len(lengths)))
+    vector = IrrigationVectorEnv(len(lengths), scenario)
+    vector.reset(seed=0, options={"weathers": short})
+    singles = [IrrigationEnv(scenario) for _ in lengths]
+    for env, series in zip(singles, short):
+        env.reset(seed=0, options={"weather": series})
+    running, ended_on = np.ones(len(lengths), dtype=bool), {}
+    for day in range(max(lengths)):
+        obs, rewards, terminated, truncated, infos = vector.step(actions[day])
+        for k in np.flatnonzero(running):
+            o, r, te, tr, info = singles[k].step(actions[day, k:k + 1])
+            np.testing.assert_array_equal(obs[k], o)
+            assert (rewards[k], terminated[k], truncated[k]) == (r, te, tr)
+            for key in ("true_biomass_t_ha", "true_paw_mm", "yield_t_ha", "episode_return", "mature"):
+                assert infos[key][k] == info[key], key
+            if tr:
+                assert not te and not info["mature"]
+                assert r == pytest.approx(COST_PER_MM * actions[day, k], rel=1e-12)  # no yield
+                ended_on[k] = info["day"]
+                running[k] = False
+            else:
+                assert not te and r == pytest.approx(COST_PER_MM * actions[day, k], rel=1e-12)
+    assert ended_on == dict(enumerate(lengths))
+
+
 @needs_data
 def test_vector_env_given_weathers_and_autoreset_next_step():
     scenario = noise_free("benton-2000")
@@ -218,7 +290,11 @@ def test_vector_env_same_step_autoreset_keeps_the_final_observation():
         if ended.any():
             k = np.flatnonzero(ended)[0]
             assert infos["_final_obs"][k] and infos["final_obs"][k, 2] > 100 and obs[k, 2] == 0
-            assert infos["final_info"]["mature"][k] and rewards[k] > 5
+            final = infos["final_info"]
+            assert final["mature"][k]
+            # The ending step itself pays the harvest: yield = HI x biomass, minus the day's water.
+            assert rewards[k] == pytest.approx(
+                RUSSET_BURBANK_HARVEST_INDEX * final["true_biomass_t_ha"][k] + COST_PER_MM * 4.0, rel=1e-12)
             return
     pytest.fail("no field ended")
 
