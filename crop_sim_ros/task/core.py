@@ -208,7 +208,7 @@ class TaskParams:
     noise_std                float32 (10,): noise std of the 8 forecast values and PAW (observation
                              order: degC, degC, degC, mm, MJ m-2, ppm, hPa, m s-1, mm), then biomass t ha-1
     max_irrigation_mm        the action's upper bound, mm d-1
-    layout                   the observation layout (paper: 20 values; family: 28)
+    layout                   the observation layout (paper: 20 values; family: 29)
     yield_value_per_t        reward units per t ha-1 of dry yield, drawn per episode: 1 (t/ha reward) or
                              tuber price USD t-1 (fresh) / dry-matter fraction
     water_price_per_mm,      reward units per mm irrigated, each drawn per episode (the paper: C_I's
@@ -377,7 +377,7 @@ def observation(params: TaskParams, table: SeasonTable, state: TaskState, rng: n
     # One field: plain indexing (np.take costs ~1 us of dispatch); N fields: np.take (the fastest gather).
     obs = rows[index].copy() if isinstance(index, int) else np.take(rows, index, axis=0)
     if params.layout is not PAPER:
-        obs = np.concatenate([obs, _extension(params, state)], axis=-1)
+        obs = np.concatenate([obs, _extension(params, table, state)], axis=-1)
     obs[..., BIOMASS] = crop.biomass_kg_ha / KG_PER_T
     obs[..., THERMAL_TIME] = crop.thermal_time_degc_d
     obs[..., PAW] = crop.plant_available_water_mm
@@ -400,15 +400,16 @@ def observation(params: TaskParams, table: SeasonTable, state: TaskState, rng: n
     return obs
 
 
-def _extension(params: TaskParams, state: TaskState) -> np.ndarray:
-    """The family's 8 extra observation values (layout columns 20-27) of ``state``, float32."""
+def _extension(params: TaskParams, table: SeasonTable, state: TaskState) -> np.ndarray:
+    """The family's extra observation values (layout columns 20-28) of ``state``, float32."""
     terms = state.terms
     day = state.crop.days_since_sowing
+    et0 = np.take(table.et0_mm, _row_index(table.et0_mm.shape[1], state.season, day))
     left = np.minimum(np.maximum(np.asarray(terms.quota_mm) - state.irrigated_mm, 0.0), QUOTA_OBSERVED_CAP_MM)
     values = (np.asarray(terms.yield_value_per_t) * params.dry_matter_fraction, terms.water_cost_per_mm,
               params.event_cost, left, np.maximum(params.nominal_season_days - np.asarray(day), 0),
               min(params.capacity_mm_per_day, params.max_irrigation_mm), 1.0 if params.paw_sensor else 0.0,
-              state.last_irrigation_mm)
+              state.last_irrigation_mm, et0)
     shape = np.shape(day)
     return np.stack([np.broadcast_to(np.asarray(v, dtype=np.float32), shape) for v in values], axis=-1)
 
@@ -423,6 +424,12 @@ def reward(params: TaskParams, state: TaskState, irrigation_mm: np.ndarray, next
     if params.event_cost:
         cost = cost + params.event_cost * (irrigation_mm > 0.0)
     return xp.where(harvest, state.terms.yield_value_per_t * yield_t_ha, 0.0) - cost
+
+
+def terms_info(state: TaskState) -> dict:
+    """The episode's terms as ``info`` entries: reward units per t/ha of dry yield, per mm, and the quota (mm)."""
+    return {"yield_value_per_t": state.terms.yield_value_per_t, "water_cost_per_mm": state.terms.water_cost_per_mm,
+            "quota_mm": state.terms.quota_mm}
 
 
 def crop_info(params: TaskParams, crop: CropState) -> dict:

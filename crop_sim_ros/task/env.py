@@ -16,7 +16,8 @@ from .scenario import Scenario, get_scenario
 
 # Keys of ``info`` (reset and step); the ROS simulator node and the agents rely on them: keep them stable.
 STATE_INFO_KEYS = ("day", "date", "season", "weather_source", "weather_filled", "true_biomass_t_ha", "true_paw_mm",
-                   "thermal_time_degc_d", "fsolar", "yield_t_ha", "mature", "potential_yield_t_ha")
+                   "thermal_time_degc_d", "fsolar", "yield_t_ha", "mature", "potential_yield_t_ha",
+                   "yield_value_per_t", "water_cost_per_mm", "quota_mm")
 STEP_INFO_KEYS = ("irrigation_requested_mm", "irrigation_applied_mm", "irrigation_clipped", "rain_mm", "runoff_mm",
                   "drainage_mm", "transpiration_mm", "et0_mm", "arid", "episode_return", "normalized_return")
 
@@ -187,7 +188,8 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
                                             + np.arange(self._table.observation_rows.shape[1])).tolist()
         self._season_info = {"season": self._season, "weather_source": self._table.sources[k],
                              "weather_filled": self._table.filled[k],
-                             "potential_yield_t_ha": float(self._table.potential_yield_t_ha[k])}
+                             "potential_yield_t_ha": float(self._table.potential_yield_t_ha[k]),
+                             **core.terms_info(self._state)}
         self._ended = False
         self._return = 0.0
         return self._observe(), self._state_info()

@@ -1,8 +1,8 @@
 """The observation layouts of the irrigation tasks, defined once and read by name.
 
 Two layouts exist. ``PAPER`` is the seed paper's 20 values (``shared/spec/IRRIGATION_TASK.md``); the task
-family (money, water quota, pump capacity, imperfect sensing, other climates) appends eight values to it,
-``EXTENDED`` (28 values), so that one policy can read every family task and the paper's first 20 columns
+family (money, water quota, pump capacity, imperfect sensing, other climates) appends nine values to it,
+``EXTENDED`` (29 values), so that one policy can read every family task and the paper's first 20 columns
 mean the same everywhere. Every consumer (the task core, the environments, the ROS interface, the policies)
 imports the layout from here and reads columns by name (``layout.index("paw_mm")``); nothing else spells a
 column number. This module imports only numpy.
@@ -29,6 +29,9 @@ column number. This module imports only numpy.
                                                     reading is missing (dropout, or no sensor)
 27      irrigation_yesterday_mm          mm         irrigation actually applied yesterday (after the
                                                     capacity and quota limits), 0 on the sowing day
+28      et0_mm                           mm         today's reference evapotranspiration (FAO-56 at the
+                                                    site, as weather networks such as AgWeatherNet publish
+                                                    it daily), exact
 ======= ================================ ========== =======================================================
 """
 
@@ -110,7 +113,7 @@ EXTENSION_COLUMNS = (
     Column("tuber_price_usd_per_t", "USD/t", 0.0), Column("water_cost_usd_per_mm", "USD/mm", 0.0),
     Column("event_cost_usd", "USD", 0.0), Column("quota_remaining_mm", "mm", 0.0),
     Column("season_days_left", "d", 0.0), Column("capacity_mm_per_day", "mm/d", 0.0),
-    Column("paw_observed", "1", 0.0), Column("irrigation_yesterday_mm", "mm", 0.0))
+    Column("paw_observed", "1", 0.0), Column("irrigation_yesterday_mm", "mm", 0.0), Column("et0_mm", "mm", 0.0))
 
 PAPER = ObservationLayout(_PAPER_COLUMNS)
 EXTENDED = ObservationLayout(_PAPER_COLUMNS + EXTENSION_COLUMNS)

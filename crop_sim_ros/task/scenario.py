@@ -236,7 +236,7 @@ class Scenario:
 
     @property
     def layout(self) -> ObservationLayout:
-        """The observation layout: the paper's 20 values, or the family's 28."""
+        """The observation layout: the paper's 20 values, or the family's 29."""
         return EXTENDED if self.is_family_task else PAPER
 
     @property
@@ -369,14 +369,50 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
     return Scenario(weather=source, data_dir=None if data_dir is None else Path(data_dir), **values)
 
 
+# Mappings a derived scenario merges with its base's, field by field (the rest it replaces whole).
+_MERGED_MAPPINGS = ("noise", "economics", "limits")
+
+
+def _yaml_mapping(path: Path, chain: tuple[Path, ...] = ()) -> dict:
+    """The scenario mapping of the YAML file ``path``, with its ``base`` (a built-in scenario name or a YAML
+    path relative to this file) resolved: the base's mapping updated by this file's fields."""
+    if path in chain:
+        raise ValueError(f"base: {' -> '.join(str(p) for p in chain + (path,))} is a cycle")
+    values = yaml.safe_load(path.read_text(encoding="utf-8"))
+    if not isinstance(values, dict):
+        raise ValueError(f"expected a mapping of scenario fields, got {type(values).__name__}")
+    base = values.pop("base", None)
+    if base is None:
+        return values
+    base_path = SCENARIO_DIR / f"{base}.yaml" if (SCENARIO_DIR / f"{base}.yaml").is_file() else path.parent / str(base)
+    if not base_path.is_file():
+        raise ValueError(f"base: {base!r} is neither a built-in scenario ({', '.join(scenario_names())}) nor a file")
+    merged = _yaml_mapping(base_path, chain + (path,))
+    merged.pop("description", None)
+    for key, value in values.items():
+        if key in _MERGED_MAPPINGS and isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = {**merged[key], **value}
+        else:
+            merged[key] = value
+    return merged
+
+
 def load_scenario(path: str | Path, data_dir: str | Path | None = None) -> Scenario:
-    """Read a scenario YAML file; ValueError names the file and the field at fault."""
+    """Read a scenario YAML file (``base: NAME`` derives it from another scenario: see the module docstring);
+    ValueError names the file and the field at fault."""
     path = Path(path)
     try:
-        values = yaml.safe_load(path.read_text(encoding="utf-8"))
-        return scenario_from_dict(values, data_dir)
+        return scenario_from_dict(_yaml_mapping(path), data_dir)
     except (ValueError, yaml.YAMLError) as error:
         raise ValueError(f"{path}: {error}") from None
+
+
+def with_weather_of(task: Scenario, weather: Scenario) -> Scenario:
+    """``task``'s crop, terms and noise on ``weather``'s seasons (source, sowing date, site, season length):
+    how a family task is evaluated on held-out real seasons or another climate."""
+    return replace(task, name=f"{task.name}@{weather.name}", weather=weather.weather, sowing_date=weather.sowing_date,
+                   site=weather.site, max_season_days=weather.max_season_days, data_dir=weather.data_dir,
+                   description=f"{task.description}; weather of {weather.name}")
 
 
 def scenario_names() -> list[str]:

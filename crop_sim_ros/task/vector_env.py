@@ -202,6 +202,7 @@ class IrrigationVectorEnv(VectorEnv):
             **core.crop_info(self.params, state.crop),
             "season": state.season,
             "potential_yield_t_ha": self._table.potential_yield_t_ha[state.season],
+            **core.terms_info(state),
             "episode_return": self._returns.copy(),
         }
         values["normalized_return"] = values["episode_return"] / (values["potential_yield_t_ha"]
