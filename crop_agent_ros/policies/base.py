@@ -18,6 +18,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from crop_sim_ros.task.layout import EXTENDED, PAPER
+
 # Observation layout (IRRIGATION_TASK.md, "Observation, each day").
 OBS_SIZE = 20
 BIOMASS_T_HA = 0
@@ -67,6 +69,9 @@ class BasePolicy:
     """Shape handling for policies: subclasses implement ``_act_batch((N, 20)) -> (N,)`` mm."""
 
     name = "policy"
+    # The observation layouts the policy reads (crop_sim_ros.task.layout): the paper's 20 values, and the task
+    # family's 29 (which start with the same 20).
+    observation_sizes = (PAPER.size, EXTENDED.size)
 
     def reset(self, seed: int | None = None) -> None:
         self._seed = seed
@@ -76,8 +81,9 @@ class BasePolicy:
 
     def act(self, observation: np.ndarray) -> np.ndarray | float:
         obs = np.asarray(observation, dtype=float)
-        if obs.shape[-1] != OBS_SIZE or obs.ndim not in (1, 2):
-            raise ValueError(f"{self.name}: expected an observation of shape (20,) or (N, 20), got {obs.shape}")
+        if obs.ndim not in (1, 2) or obs.shape[-1] not in self.observation_sizes:
+            raise ValueError(f"{self.name}: expected observations of {' or '.join(map(str, self.observation_sizes))} "
+                             f"values, shape (size,) or (N, size), got {obs.shape}")
         batch = np.clip(np.asarray(self._act_batch(np.atleast_2d(obs)), dtype=float).reshape(-1),
                         ACTION_LOW_MM, ACTION_HIGH_MM)
         return float(batch[0]) if obs.ndim == 1 else batch

@@ -63,9 +63,12 @@ def season_contexts(scenario) -> list[SeasonContext]:
 
 
 def run_episodes(policy, scenario, seasons, seed: int | None = 0, record: bool = False,
-                 contexts: list[SeasonContext] | None = None) -> Episodes:
+                 contexts: list[SeasonContext] | None = None, terms: dict | None = None) -> Episodes:
     """One episode per entry of ``seasons`` (indices into the scenario's seasons), all fields at once, with
     the environment's noise generator seeded by ``seed``. ``policy.act`` receives the (N, 20) batch.
+
+    ``terms`` (name -> (N,) array, see ``IrrigationVectorEnv.reset``) fixes the family task's drawn terms
+    (prices, quota) of each field, for comparisons on the same terms.
 
     Policies with ``begin_season`` get the list of the fields' :class:`SeasonContext` (``contexts`` of
     the scenario, computed if not given) before the first step.
@@ -81,7 +84,7 @@ def run_episodes(policy, scenario, seasons, seed: int | None = 0, record: bool =
     if hasattr(policy, "begin_season"):
         all_contexts = contexts if contexts is not None else season_contexts(scenario)
         policy.begin_season([all_contexts[k] for k in seasons])
-    obs, info = env.reset(seed=seed, options={"season": seasons})
+    obs, info = env.reset(seed=seed, options={"season": seasons, **({} if terms is None else {"terms": terms})})
     potential = np.asarray(info["potential_yield_t_ha"], dtype=float).copy()
     total = np.zeros(n)
     water = np.zeros(n)

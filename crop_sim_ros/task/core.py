@@ -308,6 +308,21 @@ def draw_terms(params: TaskParams, rng: np.random.Generator | None, n: int | Non
     return EpisodeTerms(value, water + energy, quota)
 
 
+def given_terms(drawn: EpisodeTerms, given: dict) -> EpisodeTerms:
+    """``drawn`` with the entries of ``given`` (name -> array of the same shape) in their place; ValueError
+    names an unknown term or a wrong shape."""
+    unknown = sorted(set(given) - set(EpisodeTerms._fields))
+    if unknown:
+        raise ValueError(f"terms: unknown {unknown}; known: {', '.join(EpisodeTerms._fields)}")
+    values = drawn._asdict()
+    for name, value in given.items():
+        value = np.asarray(value, dtype=float)
+        if value.shape != np.shape(values[name]) or np.isnan(value).any() or (value < 0).any():
+            raise ValueError(f"terms.{name}: expected {np.shape(values[name])} non-negative numbers, got {value!r}")
+        values[name] = value
+    return EpisodeTerms(**values)
+
+
 class TaskState(NamedTuple):
     """N fields (arrays (N,)), or one field as Python scalars: the crop (at the start of its day), the index
     of each field's season in the table, the episode's terms, the irrigation applied so far this season

@@ -84,7 +84,9 @@ class IrrigationVectorEnv(VectorEnv):
     """N fields of one scenario (see the module docstring and :class:`IrrigationEnv` for spaces and rewards).
 
     ``reset(options=...)``: ``{"season": indices (N,)}`` puts field i in season ``indices[i]`` of the
-    scenario; ``{"weathers": [WeatherSeries] * N}`` grows field i in the given series (sown on its first
+    scenario; ``{"terms": {"quota_mm": (N,), ...}}`` sets the first episode's drawn terms (any of
+    ``yield_value_per_t``, ``water_cost_per_mm``, ``quota_mm``: paired comparisons on the same terms);
+    ``{"weathers": [WeatherSeries] * N}`` grows field i in the given series (sown on its first
     day). Later autoresets draw from the scenario's seasons again.
     """
 
@@ -119,8 +121,9 @@ class IrrigationVectorEnv(VectorEnv):
         options = dict(options or {})
         weathers = options.pop("weathers", None)
         season = options.pop("season", None)
+        terms = options.pop("terms", None)
         if options:
-            raise ValueError(f"unknown reset options {sorted(options)}; known: weathers, season")
+            raise ValueError(f"unknown reset options {sorted(options)}; known: weathers, season, terms")
         self._table = self.seasons
         if weathers is not None:
             if len(weathers) != self.num_envs:
@@ -135,6 +138,8 @@ class IrrigationVectorEnv(VectorEnv):
             if season.min() < 0 or season.max() >= len(self.seasons):
                 raise ValueError(f"season: indices must be in 0..{len(self.seasons) - 1}")
         self._state = core.initial(self.params, season, self.np_random)
+        if terms is not None:
+            self._state = self._state._replace(terms=core.given_terms(self._state.terms, terms))
         self._autoreset[:] = False
         self._returns[:] = 0.0
         obs = core.observation(self.params, self._table, self._state, self._noise_rng)

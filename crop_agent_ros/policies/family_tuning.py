@@ -1,0 +1,128 @@
+"""Tune the water-budget rule (:mod:`crop_agent_ros.policies.family`) of a family task on generated training
+seasons only (never the held-out ones), and write ``family_<task>.json`` beside the rules.
+
+    crop-sim tune-rule --task benton-quota [--seasons 0..199] [--seed 0] [--candidates 192] [--rounds 4]
+
+Method: a random search over the rule's parameter box, then rounds of local search around the best few
+(Gaussian steps shrinking by half each round). Every candidate x season is one field of one batched
+environment run; every candidate meets the same seasons, the same drawn terms (prices, quota) and the same
+noise seed (common random numbers), so their differences are the rule's, not the draw's. The score is the
+mean return over the seasons.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .family import FarmFacts, RuleParameters, WaterBudgetRule
+from .rollout import run_episodes
+
+HERE = Path(__file__).resolve().parent
+# The search box: (low, high) of each parameter, and values outside the box a candidate may take ("never").
+SEARCH_BOX = {
+    "level_factor": (0.3, 1.3),
+    "margin_mm": (-40.0, 40.0),
+    "skip_rain_mm": (0.0, 30.0),
+    "stop_tt_fraction": (0.5, 1.1),
+    "pace": (0.3, 4.0),
+    "value_ratio": (0.0, 0.05),
+}
+NEVER = {"skip_rain_mm": 1e6, "stop_tt_fraction": 10.0, "pace": np.inf, "value_ratio": np.inf}
+
+
+def rule_file(task: str) -> Path:
+    return HERE / f"family_{task}.json"
+
+
+def draw_terms(scenario, seasons: np.ndarray, seed: int) -> dict:
+    """One draw of the task's episode terms per season (the same for every candidate)."""
+    from crop_sim_ros.task import core
+    params = core.task_params(scenario, len(seasons))
+    terms = core.draw_terms(params, np.random.default_rng([seed, 7919]), len(seasons))
+    return terms._asdict()
+
+
+def candidate_returns(scenario, facts: FarmFacts, candidates: dict, seasons: np.ndarray, seed: int,
+                      terms: dict) -> np.ndarray:
+    """(C, M) returns of C candidates (name -> (C,) arrays) on M seasons, one batched run."""
+    c = len(next(iter(candidates.values())))
+    m = len(seasons)
+    rule = WaterBudgetRule(facts, {k: np.repeat(np.asarray(v, float), m) for k, v in candidates.items()})
+    episodes = run_episodes(rule, scenario, np.tile(seasons, c), seed=seed,
+                            terms={k: np.tile(v, c) for k, v in terms.items()})
+    return episodes.episode_return.reshape(c, m)
+
+
+def _random_candidates(rng: np.random.Generator, n: int, names: tuple[str, ...]) -> dict:
+    out = {}
+    for name in names:
+        low, high = SEARCH_BOX[name]
+        values = rng.uniform(low, high, n)
+        if name in NEVER:
+            values = np.where(rng.random(n) < 0.35, NEVER[name], values)
+        out[name] = values
+    return out
+
+
+def _perturb(rng: np.random.Generator, best: list[dict], n: int, scale: float) -> dict:
+    out = {name: np.empty(n) for name in best[0]}
+    for i in range(n):
+        parent = best[i % len(best)]
+        for name, value in parent.items():
+            low, high = SEARCH_BOX[name]
+            if not np.isfinite(value) or value == NEVER.get(name):
+                # a "never" value flips into the box now and then, else stays
+                out[name][i] = rng.uniform(low, high) if rng.random() < 0.2 else value
+            else:
+                out[name][i] = np.clip(value + rng.normal(0.0, scale * (high - low)), low, high)
+    return out
+
+
+def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 192, rounds: int = 4,
+              names: tuple[str, ...] = RuleParameters.names(), log=print) -> dict:
+    """The best rule parameters on ``seasons`` of ``scenario`` (see the module docstring), with its score."""
+    facts = FarmFacts.of_scenario(scenario)
+    rng = np.random.default_rng(seed)
+    terms = draw_terms(scenario, seasons, seed)
+    defaults = {k: np.array([getattr(RuleParameters(), k)]) for k in names}
+    pool = _random_candidates(rng, candidates - 1, names)
+    pool = {k: np.concatenate([defaults[k], pool[k]]) for k in names}
+    history = []
+    scale = 0.15
+    everything = {k: np.empty(0) for k in names}
+    scores_all = np.empty(0)
+    for round_ in range(rounds + 1):
+        scores = candidate_returns(scenario, facts, pool, seasons, seed, terms).mean(axis=1)
+        everything = {k: np.concatenate([everything[k], pool[k]]) for k in names}
+        scores_all = np.concatenate([scores_all, scores])
+        order = np.argsort(scores_all)[::-1]
+        best = [{k: float(everything[k][i]) for k in names} for i in order[:8]]
+        history.append(float(scores_all[order[0]]))
+        log(f"round {round_}: best mean return {scores_all[order[0]]:.4f} of {len(scores_all)} candidates")
+        if round_ < rounds:
+            pool = _perturb(rng, best, candidates, scale)
+            scale /= 2.0
+    return {"parameters": best[0], "mean_return": history[-1], "history": history,
+            "seasons": [int(seasons[0]), int(seasons[-1])], "seed": seed, "scenario": scenario.name,
+            "facts": {"capacity_mm": facts.capacity_mm, "tsum_degc_d": facts.tsum_degc_d}}
+
+
+def tuned_rule(task: str, scenario=None) -> WaterBudgetRule:
+    """The rule tuned for ``task`` (FileNotFoundError says how to tune it)."""
+    path = rule_file(task)
+    if not path.exists():
+        raise FileNotFoundError(f"{path} is missing: run `crop-sim tune-rule --task {task}`")
+    tuned = json.loads(path.read_text())
+    facts = FarmFacts(**tuned["facts"])
+    params = {k: (np.inf if v is None else v) for k, v in tuned["parameters"].items()}
+    return WaterBudgetRule(facts, params, name="budget-rule")
+
+
+def write_tuned(task: str, result: dict) -> Path:
+    path = rule_file(task)
+    plain = {**result, "parameters": {k: (None if not np.isfinite(v) else v) for k, v in result["parameters"].items()}}
+    path.write_text(json.dumps(plain, indent=1) + "\n")
+    return path
