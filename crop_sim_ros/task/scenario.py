@@ -11,6 +11,15 @@ Weather sources (``weather.kind``):
   ``n_seasons: 1`` is a single fixed generated season. Needs no file.
 - ``file``: one weather file (``path``, ``format``), the season starting on ``sowing_date``.
 - ``seasons``: several (file, format, sowing date) seasons; ``reset`` picks one (or the one asked for).
+- ``mixture``: the seasons of several built-in scenarios (``mixture: [benton-generated, gainesville-generated]``),
+  each prepared as its own scenario prepares it (its sowing date, site and season length): training across
+  climates.
+
+A scenario file may derive from another (``base: NAME``, a built-in name or a YAML path beside it): it takes
+the base's fields and replaces those it names (``noise``, ``economics`` and ``limits`` field by field). The
+task family's scenarios (``benton-money``, ``benton-quota``, ``benton-capacity``, ``benton-sensing``,
+``benton-blind``, ``climates-quota``) derive from ``benton-generated`` this way; their terms are documented in
+:mod:`crop_sim_ros.task.terms`.
 
 File formats: ``agweathernet`` (AgWeatherNet daily CSV), ``dssat`` (DSSAT .WTH), ``csv`` (the plain daily CSV of
 ``crop_sim_ros.weather.csv_readers.read_plain_csv``).
@@ -56,7 +65,7 @@ from .terms import Economics, FarmLimits
 # ../shared/data next to the repository root (crop_sim_ros/task/scenario.py -> parents[2] is the root).
 DEFAULT_DATA_DIR = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 SCENARIO_DIR = Path(__file__).with_name("scenarios")
-WEATHER_KINDS = ("generator", "file", "seasons")
+WEATHER_KINDS = ("generator", "file", "seasons", "mixture")
 WEATHER_FORMATS = ("agweathernet", "dssat", "csv")
 # The weather generator's parameter sets (one per climate, crop_sim_ros/weather/<name>_generator.json).
 GENERATOR_PARAMETERS = GENERATOR_NAMES
@@ -155,6 +164,7 @@ class WeatherSource:
     n_seasons: int = 1000
     generator: str = "benton"
     seasons: tuple[SeasonFile, ...] = ()
+    mixture: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.kind not in WEATHER_KINDS:
@@ -166,6 +176,10 @@ class WeatherSource:
             _check_count("weather.n_seasons", self.n_seasons, MAX_GENERATED_SEASONS)
             if int(self.seed) != self.seed or self.seed < 0:
                 raise ValueError(f"weather.seed: {self.seed!r} is not a non-negative integer")
+        elif self.kind == "mixture":
+            if not self.mixture or not all(isinstance(n, str) and n for n in self.mixture):
+                raise ValueError(f"weather.mixture: a mixture needs a list of built-in scenario names, got "
+                                 f"{self.mixture!r}")
         elif not self.seasons or (self.kind == "file" and len(self.seasons) != 1):
             raise ValueError(f"weather.seasons: a {self.kind!r} source needs "
                              f"{'one season' if self.kind == 'file' else 'at least one season'}")
@@ -257,6 +271,8 @@ class Scenario:
     @property
     def n_seasons(self) -> int:
         """How many distinct seasons ``reset`` draws from."""
+        if self.weather.kind == "mixture":
+            return sum(get_scenario(name, self.data_dir).n_seasons for name in self.weather.mixture)
         return self.weather.n_seasons if self.weather.kind == "generator" else len(self.weather.seasons)
 
     def season_path(self, season: SeasonFile) -> Path:
@@ -277,6 +293,10 @@ class Scenario:
             raw = generate_seasons(generator_parameters(self.weather.generator), self.sowing_date,
                                    self.max_season_days, self.weather.n_seasons, self.weather.seed)
             return [self.prepare(series) for series in raw]
+        if self.weather.kind == "mixture":
+            # each part's seasons as that scenario prepares them (its own sowing date, site, season length)
+            return [series for name in self.weather.mixture
+                    for series in get_scenario(name, self.data_dir).load_seasons()]
         return [self.prepare(_read_weather(str(self.season_path(s)), s.format), s.sowing_date)
                 for s in self.weather.seasons]
 
@@ -330,8 +350,8 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
     sowing = None if sowing is None else _as_date("sowing_date", sowing)
     if "weather" not in values:
         raise ValueError("weather: missing (a mapping with kind: generator, file or seasons)")
-    weather = _take(values.pop("weather"), {"kind", "seed", "n_seasons", "generator", "seasons", "path", "format"},
-                    "weather")
+    weather = _take(values.pop("weather"),
+                    {"kind", "seed", "n_seasons", "generator", "seasons", "path", "format", "mixture"}, "weather")
     kind = weather.get("kind")
     if kind == "file":
         if sowing is None:
@@ -345,7 +365,10 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
             raise ValueError(f"weather.seasons[{i}].path: missing")
         seasons.append(SeasonFile(str(entry["path"]), str(entry.get("format")),
                                   _as_date(f"weather.seasons[{i}].sowing_date", entry.get("sowing_date"))))
-    extra = set(weather) - {"kind", "seed", "n_seasons", "generator"}
+    if kind == "mixture":
+        names = weather.get("mixture")
+        weather["mixture"] = tuple(names) if isinstance(names, list) else names
+    extra = set(weather) - {"kind", "seed", "n_seasons", "generator", "mixture"}
     if extra:
         raise ValueError(f"weather.{sorted(extra)[0]}: not a field of a {kind!r} source")
     source = WeatherSource(seasons=tuple(seasons), **weather)
