@@ -1,0 +1,228 @@
+"""``crop-sim train --task TASK``: train a family agent (PPO, or RecurrentPPO) on a family task's training
+seasons (generated weather only; the held-out real seasons and the held-out climate are never seen).
+
+The network's observation and action are those of :mod:`crop_agent_ros.learning.agent` (normalised raw
+observation, action in mm). Training reward: the task's reward (USD/ha) divided by ``REWARD_SCALE_USD`` and
+shaped by a potential (Ng et al. 1999), Phi(s) = the value of the yield the crop would give if harvested
+now (tuber price / dry-matter fraction x harvest index x true biomass), 0 at the season's end: the yield paid
+at harvest is spread over the days that grew it; the optimal policy is unchanged, and every evaluation
+uses the true reward.
+
+Along the way (every ``--eval-freq`` steps) the deterministic policy runs on fixed validation seasons (a
+generator seed the training pool does not use) with fixed terms; the curve (CSV + PNG), a checkpoint at 1 %
+of the budget (``early_model.zip``, for the "learning is real" check) and the final policy (``model.zip`` +
+``model.json``) go to ``--out``. Nothing held out is used to choose anything.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from .agent import ACTION_SCALE_MM, ALGORITHMS, DAY, History, ObservationScaler, action_to_mm
+
+REWARD_SCALE_USD = 1000.0
+TRAINING_KINDS = ("generator", "mixture")
+
+
+def add_task_arguments(parser) -> None:
+    parser.add_argument("--task", default=None, help="a family task (e.g. benton-quota): trains a family agent")
+    parser.add_argument("--algorithm", default="ppo", choices=ALGORITHMS)
+    parser.add_argument("--history", type=int, default=1, help="observations the network sees (frame stack)")
+
+
+def validation_scenario(scenario, seed: int, n_seasons: int):
+    """Generated seasons the training pool does not hold: each generator part re-seeded (seed + 10,007)."""
+    from crop_sim_ros.task.scenario import get_scenario
+    weather = scenario.weather
+    if weather.kind == "generator":
+        return replace(scenario, name=f"{scenario.name}-validation",
+                       weather=replace(weather, seed=weather.seed + 10_007 + seed, n_seasons=n_seasons))
+    parts = [get_scenario(name, scenario.data_dir) for name in weather.mixture]
+    # a mixture validates on its first part's generator (the training pool's seeds are never reused)
+    first = parts[0]
+    return replace(scenario, name=f"{scenario.name}-validation", sowing_date=first.sowing_date,
+                   max_season_days=first.max_season_days,
+                   weather=replace(first.weather, seed=first.weather.seed + 10_007 + seed, n_seasons=n_seasons))
+
+
+def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
+    """Observation statistics over ``seasons`` training seasons under the default water-budget rule."""
+    from crop_sim_ros.task import IrrigationVectorEnv
+    from ..policies.family import FarmFacts, WaterBudgetRule
+
+    rule = WaterBudgetRule(FarmFacts.of_scenario(scenario))
+    env = IrrigationVectorEnv(seasons, scenario)
+    obs, _ = env.reset(seed=seed + 17)
+    seen = [obs]
+    rule.reset(seed)
+    for _ in range(160):
+        obs, *_ = env.step(rule.act(obs))
+        seen.append(obs)
+    return ObservationScaler.fit(np.concatenate(seen))
+
+
+def training_env(scenario, n_envs: int, seed: int, scaler: ObservationScaler, history: int, harvest_index: float,
+                 dry_matter_fraction: float):
+    """The SB3 VecEnv the network trains on (scaled history in, [-1, 1] action out, scaled shaped reward)."""
+    from gymnasium import spaces
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+    from crop_sim_ros.task.layout import EXTENDED
+    from crop_sim_ros.task.sb3_vec import IrrigationSB3VecEnv
+
+    price = EXTENDED.index("tuber_price_usd_per_t")
+
+    class TaskWrapper(VecEnvWrapper):
+        def __init__(self):
+            venv = IrrigationSB3VecEnv(n_envs, scenario, seed=seed)
+            super().__init__(venv, observation_space=spaces.Box(-10.0, 10.0, (EXTENDED.size * history,), np.float32),
+                             action_space=spaces.Box(-1.0, 1.0, (1,), np.float32))
+            self.history = History(history)
+
+        def _value_per_t(self, raw):
+            return raw[:, price] / dry_matter_fraction
+
+        def reset(self):
+            raw = self.venv.reset()
+            self.history.reset()
+            self.phi = np.zeros(self.num_envs)
+            return self.history.push(scaler(raw), raw[:, DAY])
+
+        def step_async(self, actions):
+            self.venv.step_async(action_to_mm(actions).reshape(-1, 1))
+
+        def step_wait(self):
+            raw, rewards, dones, infos = self.venv.step_wait()
+            biomass = np.array([info["true_biomass_t_ha"] for info in infos])
+            phi = np.where(dones, 0.0, self._value_per_t(raw) * harvest_index * biomass)
+            shaped = (rewards + phi - self.phi) / REWARD_SCALE_USD
+            self.phi = phi
+            stacked = self.history.push(scaler(raw), raw[:, DAY])
+            for i in np.flatnonzero(dones):
+                if "terminal_observation" in infos[i]:
+                    # (bootstrapped only when the weather ran out: the last day repeated as the history)
+                    infos[i]["terminal_observation"] = np.tile(scaler(infos[i]["terminal_observation"])[0], history)
+            return stacked, shaped.astype(np.float32), dones, infos
+
+    return TaskWrapper()
+
+
+def train_task(args) -> dict:
+    import torch
+    from crop_sim_ros.task import core
+    from crop_sim_ros.task.scenario import get_scenario
+    from ..policies.family import FarmFacts, WaterBudgetRule
+    from ..policies.family_tuning import draw_terms
+    from ..policies.rollout import run_episodes
+    from .agent import LearnedPolicy
+
+    torch.set_num_threads(1)
+    launched = time.perf_counter()
+    scenario = get_scenario(args.task)
+    if not scenario.is_family_task:
+        raise SystemExit(f"crop-sim train: {args.task!r} is not a family task (its observation has 20 values); "
+                         "train the paper's task without --task")
+    if scenario.weather.kind not in TRAINING_KINDS:
+        raise SystemExit(f"crop-sim train: refusing to train on {scenario.name!r}: training uses generated seasons "
+                         "only (real seasons and the held-out climate are for evaluation)")
+    out = Path(args.out) if args.out else Path("runs") / f"{args.task}-{args.algorithm}-s{args.seed}"
+    out.mkdir(parents=True, exist_ok=True)
+    params = core.task_params(scenario)
+    scaler = fit_scaler(scenario, args.seed)
+    net_arch = [int(x) for x in str(args.net_arch).split(",") if x.strip()]
+    venv = training_env(scenario, args.n_envs, args.seed, scaler, args.history,
+                        float(params.fields.harvest_index[0]), params.dry_matter_fraction)
+    lr0, lr1 = args.learning_rate, args.final_learning_rate
+    common = dict(learning_rate=lambda progress: lr1 + (lr0 - lr1) * progress, n_steps=args.n_steps,
+                  batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma, gae_lambda=args.gae_lambda,
+                  clip_range=args.clip_range, ent_coef=args.ent_coef, seed=args.seed, device="cpu", verbose=0)
+    if args.algorithm == "ppo":
+        from stable_baselines3 import PPO
+        model = PPO("MlpPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init},
+                    **common)
+    else:
+        from sb3_contrib import RecurrentPPO
+        model = RecurrentPPO("MlpLstmPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init,
+                                                                   "lstm_hidden_size": 64}, **common)
+    validation = validation_scenario(scenario, args.seed, args.validation_seasons)
+    seasons = np.arange(args.validation_seasons)
+    terms = draw_terms(validation, seasons, 1234)
+    rule = WaterBudgetRule(FarmFacts.of_scenario(scenario))
+    rule_return = float(run_episodes(rule, validation, seasons, seed=1000, terms=terms).episode_return.mean())
+    config = {"task": scenario.name, "algorithm": args.algorithm, "history": args.history, "seed": args.seed,
+              "timesteps": args.timesteps, "n_envs": args.n_envs, "net_arch": net_arch,
+              "action": f"a in [-1, 1] -> (a + 1) / 2 x {ACTION_SCALE_MM:g} mm",
+              "scaler": {"mean": list(scaler.mean), "std": list(scaler.std)},
+              "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",
+              "hyper_parameters": {k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "n_steps",
+                                                                 "batch_size", "n_epochs", "gamma", "gae_lambda",
+                                                                 "clip_range", "ent_coef", "log_std_init")}}
+
+    def save(model_, name: str, at: int) -> Path:
+        path = out / f"{name}.zip"
+        model_.save(path)
+        path.with_suffix(".json").write_text(json.dumps({**config, "timesteps_at_save": at}, indent=1) + "\n")
+        return path
+
+    rows: list[dict] = []
+    early_at = max(args.n_envs * args.n_steps, args.timesteps // 100)
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Curve(BaseCallback):
+        def __init__(self):
+            super().__init__()
+            self.next_eval = 0
+            self.early_saved = False
+            self.started = None
+
+        def _on_training_start(self) -> None:
+            self.started = time.perf_counter()
+            print(f"training starts {self.started - launched:.1f} s after launch", file=sys.stderr, flush=True)
+
+        def _on_step(self) -> bool:
+            if not self.early_saved and self.num_timesteps >= early_at:
+                self.early_saved = True
+                save(self.model, "early_model", self.num_timesteps)
+                self.evaluate()
+            if self.num_timesteps >= self.next_eval:
+                self.next_eval += args.eval_freq
+                self.evaluate()
+            return True
+
+        def evaluate(self):
+            path = save(self.model, "checkpoint", self.num_timesteps)
+            policy = LearnedPolicy(path)
+            episodes = run_episodes(policy, validation, seasons, seed=1000, terms=terms)
+            row = {"timesteps": int(self.num_timesteps), "wall_s": round(time.perf_counter() - self.started, 1),
+                   "validation_return": float(episodes.episode_return.mean()),
+                   "validation_minus_default_rule": float(episodes.episode_return.mean() - rule_return),
+                   "validation_water_mm": float(episodes.water_mm.mean())}
+            rows.append(row)
+            print(f"[{row['timesteps']:>9}] {row['wall_s']:>6.0f} s  validation return {row['validation_return']:.1f}"
+                  f" (default rule {rule_return:.1f}), water {row['validation_water_mm']:.0f} mm",
+                  file=sys.stderr, flush=True)
+
+    callback = Curve()
+    model.learn(total_timesteps=args.timesteps, callback=callback, progress_bar=not args.no_progress)
+    training_s = time.perf_counter() - callback.started
+    callback.evaluate()
+    (out / "checkpoint.zip").unlink(missing_ok=True)
+    (out / "checkpoint.json").unlink(missing_ok=True)
+    save(model, "model", model.num_timesteps)
+    with open(out / "learning_curve.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    summary = {**config, "steps_run": int(model.num_timesteps), "training_wall_s": round(training_s, 1),
+               "total_wall_s": round(time.perf_counter() - launched, 1), "default_rule_validation_return": rule_return,
+               "final": rows[-1], "command": "crop-sim " + " ".join(sys.argv[1:])}
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    print(f"ran {model.num_timesteps} steps ({args.timesteps} asked) in {training_s:.0f} s of training, "
+          f"{summary['total_wall_s']:.0f} s in all; wrote {out}", file=sys.stderr)
+    return summary
