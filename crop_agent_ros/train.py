@@ -64,6 +64,8 @@ def add_arguments(parser) -> None:
                         help="potential-based shaping of the training reward (evaluation: true reward)")
     parser.add_argument("--ship", action="store_true", help="copy the policy to crop_agent_ros/policies/ppo_benton")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from .learning.train_task import add_task_arguments
+    add_task_arguments(parser)
 
 
 class PolicyOfModel:
@@ -318,5 +320,9 @@ def train(args) -> dict:
 
 
 def run(args) -> int:
-    train(args)
+    if args.task is not None:
+        from .learning.train_task import train_task
+        train_task(args)
+    else:
+        train(args)
     return 0

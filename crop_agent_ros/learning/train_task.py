@@ -9,8 +9,9 @@ at harvest is spread over the days that grew it; the optimal policy is unchanged
 uses the true reward.
 
 Along the way (every ``--eval-freq`` steps) the deterministic policy runs on fixed validation seasons (a
-generator seed the training pool does not use) with fixed terms; the curve (CSV + PNG), a checkpoint at 1 %
-of the budget (``early_model.zip``, for the "learning is real" check) and the final policy (``model.zip`` +
+generator seed the training pool does not use) with fixed terms and is saved as ``checkpoint_<steps>.zip``
+(the evaluation's learning curves on held-out seasons read them); the curve (CSV), a checkpoint at 1 % of
+the budget (``early_model.zip``, for the "learning is real" check) and the final policy (``model.zip`` +
 ``model.json``) go to ``--out``. Nothing held out is used to choose anything.
 """
 
@@ -196,7 +197,7 @@ def train_task(args) -> dict:
             return True
 
         def evaluate(self):
-            path = save(self.model, "checkpoint", self.num_timesteps)
+            path = save(self.model, f"checkpoint_{self.num_timesteps:09d}", self.num_timesteps)
             policy = LearnedPolicy(path)
             episodes = run_episodes(policy, validation, seasons, seed=1000, terms=terms)
             row = {"timesteps": int(self.num_timesteps), "wall_s": round(time.perf_counter() - self.started, 1),
@@ -212,8 +213,6 @@ def train_task(args) -> dict:
     model.learn(total_timesteps=args.timesteps, callback=callback, progress_bar=not args.no_progress)
     training_s = time.perf_counter() - callback.started
     callback.evaluate()
-    (out / "checkpoint.zip").unlink(missing_ok=True)
-    (out / "checkpoint.json").unlink(missing_ok=True)
     save(model, "model", model.num_timesteps)
     with open(out / "learning_curve.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))

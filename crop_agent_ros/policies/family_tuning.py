@@ -126,3 +126,32 @@ def write_tuned(task: str, result: dict) -> Path:
     plain = {**result, "parameters": {k: (None if not np.isfinite(v) else v) for k, v in result["parameters"].items()}}
     path.write_text(json.dumps(plain, indent=1) + "\n")
     return path
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--task", required=True, help="a family task (e.g. benton-quota)")
+    parser.add_argument("--seasons", default="0..149", help="training seasons FIRST..LAST of the task's pool")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the search, the terms and the noise")
+    parser.add_argument("--candidates", type=int, default=128, help="candidates per round (1..10000)")
+    parser.add_argument("--rounds", type=int, default=4, help="local-search rounds after the random one (0..50)")
+
+
+def run(args) -> int:
+    from crop_sim_ros.task.scenario import get_scenario
+    from crop_sim_ros.usage import UsageError, user_input
+    with user_input("--task"):
+        scenario = get_scenario(args.task)
+    if not scenario.is_family_task or scenario.weather.kind not in ("generator", "mixture"):
+        raise UsageError(f"--task {args.task}: the rule is tuned on a family task's generated training seasons")
+    try:
+        first, last = (int(x) for x in str(args.seasons).split(".."))
+    except ValueError:
+        raise UsageError(f"--seasons {args.seasons!r}: expected FIRST..LAST, e.g. 0..149") from None
+    if not 0 <= first <= last < scenario.n_seasons:
+        raise UsageError(f"--seasons {args.seasons}: must lie within 0..{scenario.n_seasons - 1}")
+    if not (1 <= args.candidates <= 10_000 and 0 <= args.rounds <= 50):
+        raise UsageError("--candidates must be in 1..10000 and --rounds in 0..50")
+    result = tune_rule(scenario, np.arange(first, last + 1), args.seed, args.candidates, args.rounds)
+    print(f"tuned {args.task}: {result['parameters']} mean return {result['mean_return']:.2f}; "
+          f"wrote {write_tuned(args.task, result)}")
+    return 0
