@@ -1,0 +1,212 @@
+"""The task family: layout by name, farm terms, quota and capacity, money reward, sensing, derived scenarios."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from crop_sim_ros.task import IrrigationEnv, IrrigationVectorEnv, core
+from crop_sim_ros.task.layout import EXTENDED, PAPER, layout_of_size
+from crop_sim_ros.task.scenario import ObservationNoise, get_scenario, load_scenario, scenario_from_dict
+from crop_sim_ros.task.terms import Economics, FarmLimits, Range
+
+COL = {name: EXTENDED.index(name) for name in EXTENDED.names}
+
+
+def family(**limits) -> object:
+    """benton-generated with fixed prices (250 USD/t fresh, 0.2 dry matter, 1.5 USD/mm) and ``limits``."""
+    base = get_scenario("benton-generated")
+    money = Economics(tuber_price_usd_per_t=250.0, tuber_dry_matter_fraction=0.2, water_price_usd_per_mm=0.5,
+                      pumping_energy_usd_per_mm=1.0)
+    return replace(base, name="family-test", economics=money, limits=FarmLimits(**limits))
+
+
+def test_extended_layout_starts_with_the_papers_and_names_are_unique():
+    assert EXTENDED.names[:PAPER.size] == PAPER.names
+    assert len(set(EXTENDED.names)) == EXTENDED.size == 29
+    assert EXTENDED.index("paw_mm") == 19 and EXTENDED.index("et0_mm") == 28
+    assert layout_of_size(29) is EXTENDED and layout_of_size(20) is PAPER
+    with pytest.raises(KeyError, match="no observation column 'paw'"):
+        EXTENDED.index("paw")
+    with pytest.raises(ValueError, match="no observation layout has 21 values"):
+        layout_of_size(21)
+
+
+@pytest.mark.parametrize("value, message", [([3, 1], "low > high"), ([1, 2, 3], "a range is"),
+                                            ("x", "expected a number"), (-1, "not a finite number")])
+def test_bad_ranges_are_refused_naming_the_field(value, message):
+    with pytest.raises(ValueError, match=message):
+        Economics(tuber_price_usd_per_t=value)
+
+
+def test_limits_without_economics_are_refused_and_unknown_fields_named():
+    base = get_scenario("benton-generated")
+    with pytest.raises(ValueError, match="give it economics too"):
+        replace(base, limits=FarmLimits(capacity_mm_per_day=5.0))
+    with pytest.raises(ValueError, match="limits.quota: unknown field"):
+        FarmLimits.from_dict({"quota": 100})
+    with pytest.raises(ValueError, match="limits.paw_dropout_probability"):
+        FarmLimits(paw_dropout_probability=1.5)
+
+
+def test_the_papers_task_is_not_a_family_task_and_keeps_20_values():
+    scenario = get_scenario("benton-generated")
+    assert not scenario.is_family_task and scenario.reward_unit == "t/ha"
+    obs, info = IrrigationEnv(scenario).reset(seed=0)
+    assert obs.shape == (20,) and info["yield_value_per_t"] == 1.0 and info["quota_mm"] == np.inf
+
+
+def test_capacity_and_quota_cut_irrigation_and_the_observation_counts_them():
+    env = IrrigationEnv(family(quota_mm=100.0, capacity_mm_per_day=8.0))
+    obs, info = env.reset(seed=3)
+    assert obs.shape == (29,) and obs[COL["quota_remaining_mm"]] == 100.0
+    assert obs[COL["capacity_mm_per_day"]] == 8.0 and obs[COL["irrigation_yesterday_mm"]] == 0.0
+    applied = []
+    for _ in range(20):
+        obs, reward, terminated, truncated, info = env.step([30.0])
+        applied.append(info["irrigation_applied_mm"])
+        assert info["irrigation_clipped"]
+        assert obs[COL["irrigation_yesterday_mm"]] == pytest.approx(applied[-1])
+        assert obs[COL["quota_remaining_mm"]] == pytest.approx(100.0 - sum(applied), abs=1e-4)
+    # 8 mm a day (the capacity) until the last 4 mm of the quota, then nothing
+    assert applied[:12] == [8.0] * 12 and applied[12] == pytest.approx(4.0) and applied[13:] == [0.0] * 7
+
+
+def test_reward_is_net_return_in_usd_per_ha():
+    env = IrrigationEnv(family())
+    obs, info = env.reset(seed=1)
+    value_per_t = 250.0 / 0.2
+    assert info["yield_value_per_t"] == value_per_t and info["water_cost_per_mm"] == 1.5
+    assert obs[COL["tuber_price_usd_per_t"]] == 250.0 and obs[COL["water_cost_usd_per_mm"]] == 1.5
+    total = 0.0
+    while True:
+        obs, reward, terminated, truncated, info = env.step([6.0])
+        total += reward
+        if terminated or truncated:
+            break
+        assert reward == pytest.approx(-1.5 * 6.0)
+    assert terminated
+    # the harvest day pays the fresh tubers: dry yield t/ha / 0.2 x 250 USD/t, minus that day's water
+    assert reward == pytest.approx(info["yield_t_ha"] / 0.2 * 250.0 - 9.0)
+    assert info["normalized_return"] == pytest.approx(total / (info["potential_yield_t_ha"] * value_per_t))
+
+
+def test_drawn_terms_lie_in_their_ranges_and_differ_between_fields_and_seeds():
+    scenario = get_scenario("benton-quota")
+    env = IrrigationVectorEnv(256, scenario)
+    obs, info = env.reset(seed=0)
+    price = obs[:, COL["tuber_price_usd_per_t"]]
+    quota = info["quota_mm"]
+    assert price.min() >= 150 and price.max() <= 300 and np.ptp(price) > 100
+    assert quota.min() >= 150 and quota.max() <= 450 and np.ptp(quota) > 200
+    np.testing.assert_allclose(obs[:, COL["quota_remaining_mm"]], quota, rtol=1e-6)
+    again, _ = env.reset(seed=0)
+    other, _ = env.reset(seed=1)
+    np.testing.assert_array_equal(again[:, 20:], obs[:, 20:])
+    assert not np.allclose(other[:, COL["quota_remaining_mm"]], obs[:, COL["quota_remaining_mm"]])
+
+
+def test_given_terms_at_reset_are_used_and_checked():
+    env = IrrigationVectorEnv(3, get_scenario("benton-quota"))
+    terms = {"quota_mm": np.array([10.0, 20.0, 30.0])}
+    obs, info = env.reset(seed=0, options={"season": [0, 1, 2], "terms": terms})
+    np.testing.assert_array_equal(info["quota_mm"], terms["quota_mm"])
+    obs, *_ = env.step(np.full(3, 50.0))
+    np.testing.assert_allclose(obs[:, COL["irrigation_yesterday_mm"]], [8.0, 8.0, 8.0])
+    with pytest.raises(ValueError, match="terms: unknown"):
+        env.reset(seed=0, options={"terms": {"price": np.ones(3)}})
+    with pytest.raises(ValueError, match="terms.quota_mm"):
+        env.reset(seed=0, options={"terms": {"quota_mm": np.ones(2)}})
+
+
+def test_single_and_vector_family_envs_agree_without_noise():
+    scenario = replace(family(quota_mm=200.0, capacity_mm_per_day=7.0), noise=ObservationNoise.none())
+    single = IrrigationEnv(scenario)
+    vector = IrrigationVectorEnv(2, scenario)
+    vobs, _ = vector.reset(seed=0, options={"season": [4, 9]})
+    for field, season in enumerate((4, 9)):
+        obs, _ = single.reset(seed=0, options={"season": season})
+        np.testing.assert_array_equal(obs, vobs[field])
+    actions = np.array([[12.0, 3.0], [0.0, 9.0], [5.0, 5.0]] * 30)
+    returns = np.zeros(2)
+    for field, season in enumerate((4, 9)):
+        obs, _ = single.reset(seed=0, options={"season": season})
+        for day, action in enumerate(actions):
+            obs, reward, terminated, truncated, _ = single.step([action[field]])
+            returns[field] += reward
+    vector.reset(seed=0, options={"season": [4, 9]})
+    vector_returns = np.zeros(2)
+    for action in actions:
+        vobs, rewards, *_ = vector.step(action)
+        vector_returns += rewards
+    np.testing.assert_allclose(vector_returns, returns, rtol=1e-12)
+    np.testing.assert_allclose(vobs[1], obs, rtol=1e-6)
+
+
+def test_paw_dropouts_happen_at_their_rate_and_are_flagged():
+    env = IrrigationVectorEnv(400, family(paw_dropout_probability=0.3))
+    obs, _ = env.reset(seed=2)
+    flags = []
+    for _ in range(10):
+        flags.append(obs[:, COL["paw_observed"]])
+        missing = obs[:, COL["paw_observed"]] == 0.0
+        assert np.all(obs[missing, COL["paw_mm"]] == 0.0) and np.all(obs[~missing, COL["paw_mm"]] > 0.0)
+        obs, *_ = env.step(np.full(400, 4.0))
+    missing_share = 1.0 - np.mean(flags)
+    # 4,000 readings: the binomial sd of the share is 0.0072
+    assert 0.27 < missing_share < 0.33
+
+
+def test_without_a_sensor_paw_is_never_read():
+    env = IrrigationEnv(family(paw_sensor=False))
+    obs, _ = env.reset(seed=0)
+    for _ in range(5):
+        assert obs[COL["paw_mm"]] == 0.0 and obs[COL["paw_observed"]] == 0.0
+        obs, *_ = env.step([5.0])
+
+
+def test_today_et0_in_the_observation_is_the_tables():
+    scenario = family()
+    env = IrrigationEnv(scenario)
+    obs, info = env.reset(seed=0, options={"season": 7})
+    table = core.scenario_table(scenario)
+    for day in range(3):
+        assert obs[COL["et0_mm"]] == pytest.approx(table.et0_mm[7, day], rel=1e-6)
+        obs, *_ = env.step([0.0])
+
+
+def test_derived_scenarios_merge_their_base(tmp_path):
+    path = tmp_path / "mine.yaml"
+    path.write_text("base: benton-quota\nname: mine\nlimits: {capacity_mm_per_day: 5}\nnoise: {paw_mm: 4}\n")
+    scenario = load_scenario(path)
+    assert scenario.limits.capacity_mm_per_day == 5.0 and scenario.limits.quota_mm == Range(150.0, 450.0)
+    assert scenario.noise.paw_mm == 4.0 and scenario.noise.tmax_degc == 3.0
+    assert scenario.economics == Economics()
+    (tmp_path / "a.yaml").write_text("base: b.yaml\nname: a\n")
+    (tmp_path / "b.yaml").write_text("base: a.yaml\nname: b\n")
+    with pytest.raises(ValueError, match="is a cycle"):
+        load_scenario(tmp_path / "a.yaml")
+    (tmp_path / "c.yaml").write_text("base: nowhere\nname: c\n")
+    with pytest.raises(ValueError, match="'nowhere' is neither a built-in scenario"):
+        load_scenario(tmp_path / "c.yaml")
+
+
+def test_a_mixture_holds_the_seasons_of_its_parts():
+    scenario = scenario_from_dict({"name": "m", "weather": {"kind": "mixture",
+                                                            "mixture": ["paterson-1992", "paterson-1993"]}})
+    table = core.scenario_table(scenario)
+    assert len(table) == scenario.n_seasons == 2
+    assert [str(d) for d in table.sowing_dates] == ["1992-04-11", "1993-04-06"]
+    climates = get_scenario("climates-quota")
+    assert climates.n_seasons == 2000 and climates.is_family_task
+
+
+def test_every_family_scenario_loads_and_steps():
+    for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
+                 "climates-quota"):
+        env = IrrigationVectorEnv(4, name)
+        obs, _ = env.reset(seed=0)
+        obs, rewards, *_ = env.step(np.full(4, 5.0))
+        assert obs.shape == (4, 29) and np.all(np.isfinite(obs)) and np.all(rewards < 0)
