@@ -5,9 +5,11 @@ soil water, and plans the whole schedule before the season starts. Observation n
 true dynamics, so the oracle's return is the season's best achievable return up to the search's
 optimality gap: the upper bound every policy's regret is measured against.
 
-How the schedule is found (all candidate schedules of a round are N fields of one batched
-:func:`crop_sim_ros.model.simulate_season` call, scored with the task's reward
-``sum C_I * a_d + Y`` over the days up to and including the maturity day):
+How the schedule is found (all candidate schedules of a round are N fields of one batched model run,
+scored with the task's reward ``sum C_I * a_d + Y`` over the days up to and including the maturity day;
+the searches of several seasons run side by side, see :func:`find_best_schedules`; :func:`_evaluate`
+skips the days a candidate shares with the schedule it was made from and the days after every candidate
+matured, with the same results, bit for bit, as whole-season runs, :func:`schedule_returns`):
 
 1. Parametric family "exact just-in-time refill": each day, knowing the true PAW W and today's rain and
    ET0, irrigate the least amount that brings the water left after infiltration and drainage to
@@ -38,7 +40,7 @@ the last term being the water an unstressed crop must still hold after its last 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -77,7 +79,6 @@ def schedule_returns(context: SeasonContext, schedules: np.ndarray) -> tuple[np.
 def potential_yield_t_ha(context: SeasonContext, with_maturity_day: bool = False):
     """Yield of the season with water stress switched off (the normalizer and an upper bound); with
     ``with_maturity_day`` also the maturity day of that unstressed crop (-1 if it does not mature)."""
-    from dataclasses import replace
     m = _model()
     p = replace(context.params, water_stress_sensitivity=np.zeros_like(context.params.water_stress_sensitivity))
     run = m.simulate_season(p, context.tmax_degc, context.tmin_degc, context.srad_mj_m2, context.rain_mm,
@@ -100,26 +101,33 @@ def _input_for(level_mm, capacity_mm, ddc, retention_mm):
     return np.where(level_mm > capacity_mm, capacity_mm + above / (1.0 - ddc), level_mm)
 
 
-def refill_family(context: SeasonContext, k, floor_mm, stop_day) -> np.ndarray:
-    """Schedules (D, N) of the exact just-in-time refill family (see the module docstring)."""
+def refill_families(contexts: list[SeasonContext], k, floor_mm, stop_day_of) -> list[np.ndarray]:
+    """Schedules (D, N) of the exact just-in-time refill family (see the module docstring) of every
+    context, all seasons in one batched model call per day: ``k``, ``floor_mm`` (N,) and the stop days
+    ``stop_day_of(days)`` of a season of ``days`` days. Seasons shorter than the longest run on with their
+    last day's weather; those days are cut off the returned schedules."""
     m = _model()
-    k, floor_mm, stop_day = np.broadcast_arrays(np.asarray(k, float), np.asarray(floor_mm, float),
-                                                np.asarray(stop_day, float))
+    k, floor_mm = np.broadcast_arrays(np.asarray(k, float), np.asarray(floor_mm, float))
     n = k.size
-    params = m.repeat_parameters(context.params, n)
+    lengths = [len(c.rain_mm) for c in contexts]
+    stop_day = np.concatenate([np.broadcast_to(np.asarray(stop_day_of(days), float), (n,)) for days in lengths])
+    slot = np.repeat(np.arange(len(contexts)), n)
+    k, floor_mm = np.tile(k.ravel(), len(contexts)), np.tile(floor_mm.ravel(), len(contexts))
+    params = _column_parameters(contexts, slot)
+    weather = _weather_by_day(contexts)
     state = m.initial_state(params)
-    days = len(context.rain_mm)
-    out = np.zeros((days, n))
+    out = np.zeros((max(lengths), slot.size))
     cap = params.capacity_mm
     s = params.runoff_retention_mm
-    for d in range(days):
-        rain, et0 = context.rain_mm[d], context.et0_mm[d]
+    for d in range(out.shape[0]):
+        day = m.DailyWeather(*weather[d][:, slot])
+        rain, et0 = day.rain_mm, day.et0_mm
         level = np.maximum(k * et0 / UPTAKE, floor_mm)
         w1_needed = _input_for(level, cap, params.deep_drainage_coefficient, s)
         need = w1_needed - state.plant_available_water_mm  # infiltrated water wanted today
-        have = _infiltrated(np.full(n, rain), s)
-        lo = np.zeros(n)
-        hi = np.full(n, ACTION_HIGH_MM)
+        have = _infiltrated(rain, s)
+        lo = np.zeros(slot.size)
+        hi = np.full(slot.size, ACTION_HIGH_MM)
         want = need > have + 1e-9
         for _ in range(40):  # bisection on the irrigation amount (infiltration is increasing in P)
             mid = 0.5 * (lo + hi)
@@ -128,9 +136,211 @@ def refill_family(context: SeasonContext, k, floor_mm, stop_day) -> np.ndarray:
             lo = np.where(ok, lo, mid)
         amount = np.where(want & (d < stop_day) & ~state.mature, hi, 0.0)
         out[d] = amount
-        weather = m.DailyWeather(context.tmax_degc[d], context.tmin_degc[d], context.srad_mj_m2[d], rain, et0)
-        state, _ = m.step(params, state, weather, amount)
+        state, _ = m.step(params, state, day, amount)
+    return [out[:days, i * n:(i + 1) * n] for i, days in enumerate(lengths)]
+
+
+def _column_parameters(contexts: list[SeasonContext], slot: np.ndarray):
+    """FieldParameters with column j holding the (one-field) parameters of ``contexts[slot[j]]``."""
+    m = _model()
+    for c in contexts:
+        if c.params.n_fields != 1:
+            raise ValueError(f"oracle: season {c.name!r} has parameters for {c.params.n_fields} fields, not one")
+    return m.FieldParameters(**{f.name: np.concatenate([np.broadcast_to(getattr(c.params, f.name), (1,))
+                                                        for c in contexts])[slot]
+                                for f in fields(m.FieldParameters)})
+
+
+def _weather_by_day(contexts: list[SeasonContext]) -> np.ndarray:
+    """(D_max, 5, S) model weather (DailyWeather order) of the S contexts, each season padded with its
+    last day up to the longest: ``weather[d][:, slots]`` is day d of every column's season."""
+    days = max(len(c.rain_mm) for c in contexts)
+    series = [[c.tmax_degc, c.tmin_degc, c.srad_mj_m2, c.rain_mm, c.et0_mm] for c in contexts]
+    table = np.empty((days, 5, len(contexts)))
+    for s, values in enumerate(series):
+        for v, a in enumerate(values):
+            a = np.asarray(a, dtype=float)
+            table[:len(a), v, s] = a
+            table[len(a):, v, s] = a[-1]
+    return table
+
+
+@dataclass
+class _Trajectory:
+    """One field's crop state at the start of days 0..len-1 of ``schedule_mm`` (``fields``: one array per
+    CropState field), and its final (mature, maturity day, biomass kg/ha): the run that recorded it
+    stopped early only once the field was mature."""
+
+    schedule_mm: np.ndarray
+    fields: list
+    final: tuple
+
+
+@dataclass
+class _Request:
+    """Columns of ``schedules_mm`` (D, n) to score on ``context``. Without ``base``, column 0 is simulated
+    from the sowing day and every other column from the first day it differs from column 0, starting
+    from column 0's state that day (``record``: keep column 0's trajectory for later requests). With
+    ``base``, every column starts from the base trajectory on the first day it differs from its schedule."""
+
+    context: SeasonContext
+    schedules_mm: np.ndarray
+    base: _Trajectory | None = None
+    record: bool = False
+
+
+@dataclass
+class _Evaluation:
+    """Return (as :func:`schedule_returns`) and final crop state of each column of a request."""
+
+    returns: np.ndarray
+    mature: np.ndarray
+    maturity_day: np.ndarray
+    biomass_kg_ha: np.ndarray
+    trajectory: _Trajectory | None = None
+
+
+JOIN_BLOCK_DAYS = 8  # columns join the batch on days that are multiples of this
+AFTER_BASE_MATURED = -2  # the joining day of a column that leaves its base only after the base matured
+
+
+def _evaluate(requests: list[_Request]) -> list[_Evaluation]:
+    """Score the columns of every request in one batched run; the same returns as
+    :func:`schedule_returns` (bit for bit: every column goes through the same daily steps), for less work.
+
+    The candidates of a search round differ from one schedule on a few days: before its first different
+    day a column's trajectory is the base's, so it joins the run only on that day (columns sorted by
+    joining day: the fields stepped are a prefix of the batch). The run stops when every column is
+    mature (its return no longer changes), and a column's final state is taken after its own season's
+    last day. Several seasons run in one batch, one model call per day for all of them.
+    """
+    m = _model()
+    # the schedules come from the search, which keeps every amount in [0, ACTION_HIGH_MM]: not checked again
+    checked = [np.asarray(request.schedules_mm, dtype=float) for request in requests]
+    joins = []  # per column of each request: the first day it is stepped; -1: identical to column 0
+    for request, schedules in zip(requests, checked):
+        days = schedules.shape[0]
+        if days > len(request.context.rain_mm):
+            raise ValueError(f"oracle: {days}-day schedules for the {len(request.context.rain_mm)}-day season "
+                             f"{request.context.name!r}")
+        base = schedules[:, 0] if request.base is None else request.base.schedule_mm[:days]
+        differs = schedules != base[:, None]
+        join = np.where(differs.any(axis=0), differs.argmax(axis=0), -1)
+        if request.base is None:
+            join[0] = 0
+        else:
+            join[join < 0] = 0  # the base schedule itself: from the sowing day
+            # leaving the base after its recorded days, when it was mature: the base's crop, own water
+            join[join >= len(request.base.fields[0])] = AFTER_BASE_MATURED
+        # Joining early is exact (the days before the first difference are the base's days); joining
+        # in blocks of days saves the per-day cost of growing the batch.
+        joins.append(np.where(join > 0, join - join % JOIN_BLOCK_DAYS, join))
+    counts = np.array([s.shape[1] for s in checked])
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    join_all = np.concatenate(joins)
+    simulated = np.flatnonzero(join_all >= 0)
+    order = simulated[np.argsort(join_all[simulated], kind="stable")]  # the batch: columns by joining day
+    total = order.size
+    position_of = np.full(join_all.size, -1)
+    position_of[order] = np.arange(total)
+    from_base = np.array([request.base is None for request in requests])
+    first = np.where(from_base, position_of[offsets[:-1]], -1)  # column 0's place in the batch
+    copies = np.flatnonzero(join_all == -1)
+    position_of[copies] = first[np.searchsorted(offsets, copies, side="right") - 1]
+    join = join_all[order]
+    slot = np.repeat(np.arange(len(requests)), counts)[order]  # request of each column
+    # A joining column takes its state from its request's column 0 in the batch, or (a request with a
+    # base trajectory) from the trajectory on its joining day: those states are stacked after the batch.
+    source = first[slot]
+    outside = np.flatnonzero(source < 0)
+    source[outside] = total + np.arange(outside.size)
+    outside_states = [np.array([requests[slot[p]].base.fields[i][join[p]] for p in outside])
+                      for i in range(len(m.CropState._fields))] if outside.size else None
+    end_day = np.array([s.shape[0] - 1 for s in checked])[slot]
+    contexts = [request.context for request in requests]
+    weather = _weather_by_day(contexts)
+    days = weather.shape[0]
+    irrigation = np.concatenate([np.pad(s, ((0, days - s.shape[0]), (0, 0))) for s in checked], axis=1)[:, order]
+    params, per_column = _batch_parameters(contexts, slot)
+    joined = np.searchsorted(join, np.arange(days), side="right").tolist()  # columns stepped on day d
+    joined_from_outside = set(join[outside].tolist())
+    recorded = [r for r, request in enumerate(requests) if request.record and request.base is None]
+    record_at = first[recorded]
+    history = []
+    ends = {int(day): np.flatnonzero(end_day == day) for day in np.unique(end_day)}
+    last_join = int(join[-1])
+    final = {name: np.empty(total, dtype=dtype) for name, dtype in
+             (("mature", bool), ("maturity_day", np.int64), ("biomass_kg_ha", float))}
+    stepped = joined[0]
+    state = m.initial_state(_column_parameters(contexts, slot[:stepped]))
+    day_params = _prefix(params, per_column, stepped)
+    for d in range(days):
+        k = joined[d]
+        if k > stepped:  # columns that leave their base's trajectory today, from its state today
+            arriving = source[stepped:k]
+            if d in joined_from_outside:
+                state = m.CropState(*(np.concatenate((a, np.concatenate((a, np.zeros(total - a.size, a.dtype), o))
+                                                      [arriving])) for a, o in zip(state, outside_states)))
+            else:
+                state = m.CropState(*(np.concatenate((a, a[arriving])) for a in state))
+            stepped = k
+            day_params = _prefix(params, per_column, k)
+        if recorded:
+            history.append([a[record_at] for a in state])
+        state, _ = m.step(day_params, state, m.DailyWeather(*weather[d][:, slot[:k]]), irrigation[d, :k])
+        if d in ends:
+            for name in final:
+                final[name][ends[d]] = getattr(state, name)[ends[d]]
+        if d >= last_join and np.all(state.mature | (end_day <= d)):
+            still = np.flatnonzero(end_day > d)  # all mature: their final states no longer change
+            for name in final:
+                final[name][still] = getattr(state, name)[still]
+            break
+    recorded_fields = [np.stack([day[i] for day in history]) for i in range(len(state))] if recorded else []
+    out = []
+    for r, (request, schedules) in enumerate(zip(requests, checked)):
+        days, n = schedules.shape
+        at = position_of[offsets[r]:offsets[r + 1]]
+        mature, maturity_day, biomass = (final[name][at] for name in ("mature", "maturity_day", "biomass_kg_ha"))
+        late = joins[r] == AFTER_BASE_MATURED
+        if late.any():
+            if not request.base.final[0]:
+                raise ValueError("oracle: a column leaves its base after the base's recorded days")
+            mature[late], maturity_day[late], biomass[late] = request.base.final
+        harvest_index = np.broadcast_to(request.context.params.harvest_index, (n,))
+        last_day = np.where(mature, maturity_day, days - 1)
+        counted = np.arange(days)[:, None] <= last_day[None, :]
+        water = (schedules * counted).sum(axis=0)
+        yield_t_ha = np.where(mature, biomass * harvest_index / 1000.0,
+                              request.context.extra.get("unmatured_yield_factor", 0.0)
+                              * biomass * harvest_index / 1000.0)
+        trajectory = None
+        if r in recorded:
+            j = recorded.index(r)
+            trajectory = _Trajectory(schedules[:, 0].copy(), [by_day[:, j] for by_day in recorded_fields],
+                                     (mature[0], maturity_day[0], biomass[0]))
+        out.append(_Evaluation(request.context.water_cost_per_mm * water + yield_t_ha, mature, maturity_day,
+                               biomass, trajectory))
     return out
+
+
+def _batch_parameters(contexts: list[SeasonContext], slot: np.ndarray):
+    """FieldParameters of a batch whose column j is a field of ``contexts[slot[j]]``: a parameter the
+    seasons share stays one value (broadcast by the step; the same arithmetic), the others are per
+    column (their names are returned too)."""
+    m = _model()
+    first = contexts[0].params
+    per_column = [f.name for f in fields(m.FieldParameters)
+                  if not all(np.array_equal(getattr(c.params, f.name), getattr(first, f.name)) for c in contexts[1:])]
+    if not per_column:
+        return first, per_column
+    by_column = _column_parameters(contexts, slot)
+    return replace(first, **{name: getattr(by_column, name) for name in per_column}), per_column
+
+
+def _prefix(params, per_column: list[str], k: int):
+    """The parameters of the first ``k`` columns of a batch."""
+    return replace(params, **{name: getattr(params, name)[:k] for name in per_column}) if per_column else params
 
 
 @dataclass
@@ -152,31 +362,72 @@ class OracleResult:
     history: list = field(default_factory=list)
 
 
+
 def find_best_schedule(context: SeasonContext, finest_step_mm: float = 1 / 8, first_step_mm: float = 16.0,
                        max_rounds_per_step: int = 60, shift_window_days: int = 5) -> OracleResult:
     """Search the season's best schedule (see the module docstring for the method)."""
+    return find_best_schedules([context], finest_step_mm=finest_step_mm, first_step_mm=first_step_mm,
+                               max_rounds_per_step=max_rounds_per_step, shift_window_days=shift_window_days)[0]
+
+
+def find_best_schedules(contexts: list[SeasonContext], **search_options) -> list[OracleResult]:
+    """:func:`find_best_schedule` of every context, the searches run side by side: each round's candidates
+    of all seasons are scored in one batched run (the same results as searching one season at a time)."""
+    contexts = list(contexts)
+    if not contexts:
+        return []
+    ks, floors = np.meshgrid(FAMILY_K, FAMILY_FLOOR_MM, FAMILY_STOP_DAYS_BEFORE_END, indexing="ij")[:2]
+    families = refill_families(contexts, ks.ravel(), floors.ravel(), _family_stop_days)
+    searches = [_search(context, family, **search_options) for context, family in zip(contexts, families)]
+    waiting = {i: next(search) for i, search in enumerate(searches)}
+    results: list[OracleResult | None] = [None] * len(contexts)
+    while waiting:
+        pending = list(waiting)
+        for i, evaluation in zip(pending, _evaluate([waiting[i] for i in pending])):
+            try:
+                waiting[i] = searches[i].send(evaluation)
+            except StopIteration as finished:
+                results[i] = finished.value
+                del waiting[i]
+    return results
+
+
+# The parametric family's grid: k, floor (mm) and stop day (days before the end of the season's weather).
+FAMILY_K = np.array([0.8, 0.9, 0.95, 1.0, 1.02, 1.05, 1.1, 1.2])
+FAMILY_FLOOR_MM = np.array([0.0, 40.0, 60.0, 80.0])
+FAMILY_STOP_DAYS_BEFORE_END = np.array([0, 10, 20, 30])
+FAMILY_CONSTANTS_MM = np.array([0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 15.0])
+
+
+def _family_stop_days(days: int) -> np.ndarray:
+    """The stop day of every family member (k, floor, stop in meshgrid order) of a ``days``-day season."""
+    return np.meshgrid(FAMILY_K, FAMILY_FLOOR_MM, days - FAMILY_STOP_DAYS_BEFORE_END, indexing="ij")[2].ravel()
+
+
+def _search(context: SeasonContext, family: np.ndarray, finest_step_mm: float = 1 / 8, first_step_mm: float = 16.0,
+            max_rounds_per_step: int = 60, shift_window_days: int = 5):
+    """One season's search (the module docstring's method) as a generator: it yields each batch of
+    candidates to score (a :class:`_Request`), receives their :class:`_Evaluation`, and returns the
+    :class:`OracleResult`."""
     days = len(context.rain_mm)
     evaluations = 0
     # 1. parametric family
-    ks = np.array([0.8, 0.9, 0.95, 1.0, 1.02, 1.05, 1.1, 1.2])
-    floors = np.array([0.0, 40.0, 60.0, 80.0])
-    stops = np.array([days, days - 10, days - 20, days - 30])
-    kk, ff, ss = [a.ravel() for a in np.meshgrid(ks, floors, stops, indexing="ij")]
-    family = refill_family(context, kk, ff, ss)
-    constants = np.array([0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 15.0])
+    kk, ff, ss = [a.ravel() for a in np.meshgrid(FAMILY_K, FAMILY_FLOOR_MM, days - FAMILY_STOP_DAYS_BEFORE_END,
+                                                 indexing="ij")]
+    constants = FAMILY_CONSTANTS_MM
     candidates = np.concatenate([family, np.broadcast_to(constants, (days, constants.size))], axis=1)
-    returns, _ = schedule_returns(context, candidates)
+    scored = yield _Request(context, candidates)
+    returns = scored.returns
     evaluations += candidates.shape[1]
     best_i = int(np.argmax(returns))
     best = candidates[:, best_i].copy()
     best_return = float(returns[best_i])
+    best_final = (scored.mature[best_i], scored.maturity_day[best_i], scored.biomass_kg_ha[best_i])
     family_return = best_return
     family_params = ({"k": float(kk[best_i]), "floor_mm": float(ff[best_i]), "stop_day": int(ss[best_i])}
                      if best_i < kk.size else {"constant_mm": float(constants[best_i - kk.size])})
     # 2. coordinate refinement
-    _, run = schedule_returns(context, best[:, None])
-    state = run.final_state
-    active_days = int(state.maturity_day[0]) + 1 if state.mature[0] else days
+    active_days = int(best_final[1]) + 1 if best_final[0] else days
     step_mm = first_step_mm
     rounds = 0
     last_gain = 0.0
@@ -195,9 +446,12 @@ def find_best_schedule(context: SeasonContext, finest_step_mm: float = 1 / 8, fi
             shift[movable[:, 0], columns] -= step_mm
             shift[movable[:, 1], columns] = np.minimum(shift[movable[:, 1], columns] + step_mm, ACTION_HIGH_MM)
             moves = np.concatenate([plus, minus, shift], axis=1)
-            full = np.zeros((days, moves.shape[1]))
-            full[:active_days] = moves
-            r, _ = schedule_returns(context, full)
+            # column 0: the current schedule on the active days, the base every move starts from
+            full = np.zeros((days, 1 + moves.shape[1]))
+            full[:active_days, 0] = best[:active_days]
+            full[:active_days, 1:] = moves
+            scored = yield _Request(context, full, record=True)
+            r = scored.returns[1:]
             evaluations += moves.shape[1]
             gains = r - best_return
             rounds += 1
@@ -213,13 +467,15 @@ def find_best_schedule(context: SeasonContext, finest_step_mm: float = 1 / 8, fi
                 delta = np.where(choice == 0, step_mm, -step_mm)
                 combined[:active_days] = np.where(improving, np.clip(best[:active_days] + delta, 0, ACTION_HIGH_MM),
                                                   best[:active_days])
-                rc, _ = schedule_returns(context, combined[:, None])
+                joined = yield _Request(context, combined[:, None], base=scored.trajectory)
                 evaluations += 1
-                if rc[0] > best_return + gains.max():
-                    new, new_return = combined, float(rc[0])
+                if joined.returns[0] > best_return + gains.max():
+                    new, new_return = combined, float(joined.returns[0])
+                    best_final = (joined.mature[0], joined.maturity_day[0], joined.biomass_kg_ha[0])
             if new is None:
                 j = int(np.argmax(gains))
-                new, new_return = full[:, j].copy(), float(r[j])
+                new, new_return = full[:, 1 + j].copy(), float(r[j])
+                best_final = (scored.mature[1 + j], scored.maturity_day[1 + j], scored.biomass_kg_ha[1 + j])
             last_gain = new_return - best_return
             best, best_return = new, new_return
             history.append(best_return)
@@ -232,10 +488,10 @@ def find_best_schedule(context: SeasonContext, finest_step_mm: float = 1 / 8, fi
                                  - np.sum(context.rain_mm[:last + 1])
                                  + context.et0_mm[last] * (1.0 / UPTAKE - 1.0)))
     stress_free_bound = potential + context.water_cost_per_mm * water_floor
-    _, run = schedule_returns(context, best[:, None])
-    state = run.final_state
-    yield_t_ha = float(state.biomass_kg_ha[0] * run.harvest_index[0] / 1000.0) if state.mature[0] else 0.0
-    end = int(state.maturity_day[0]) + 1 if state.mature[0] else days
+    mature, final_maturity_day, biomass = best_final
+    harvest_index = float(np.broadcast_to(context.params.harvest_index, (1,))[0])
+    yield_t_ha = float(biomass * harvest_index / 1000.0) if mature else 0.0
+    end = int(final_maturity_day) + 1 if mature else days
     best[end:] = 0.0
     return OracleResult(schedule_mm=best, return_value=best_return, family_return=family_return,
                         family_parameters=family_params, potential_yield_t_ha=potential,
@@ -256,17 +512,26 @@ class OraclePolicy(BasePolicy):
         self.results: list[OracleResult] = []
         self._cache: dict = {}
 
+    @staticmethod
+    def _key(context: SeasonContext) -> tuple:
+        return (context.name, len(context.rain_mm), float(np.sum(context.rain_mm)), float(np.sum(context.et0_mm)),
+                context.water_cost_per_mm)
+
     def plan(self, context: SeasonContext) -> OracleResult:
         """The best schedule of ``context`` (searched once per season, then cached)."""
-        key = (context.name, len(context.rain_mm), float(np.sum(context.rain_mm)), float(np.sum(context.et0_mm)),
-               context.water_cost_per_mm)
-        if key not in self._cache:
-            self._cache[key] = find_best_schedule(context, **self.search_options)
-        return self._cache[key]
+        return self.plans([context])[0]
+
+    def plans(self, contexts: list[SeasonContext]) -> list[OracleResult]:
+        """The best schedule of each context; the seasons not planned yet are searched side by side (one
+        batched model run per search round for all of them), then cached."""
+        keys = [self._key(c) for c in contexts]
+        unplanned = {key: c for key, c in zip(keys, contexts) if key not in self._cache}
+        for key, result in zip(unplanned, find_best_schedules(list(unplanned.values()), **self.search_options)):
+            self._cache[key] = result
+        return [self._cache[key] for key in keys]
 
     def begin_season(self, context) -> None:
-        contexts = list(context) if isinstance(context, (list, tuple)) else [context]
-        self.results = [self.plan(c) for c in contexts]
+        self.results = self.plans(list(context) if isinstance(context, (list, tuple)) else [context])
 
     @property
     def result(self) -> OracleResult | None:
