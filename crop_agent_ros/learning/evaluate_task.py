@@ -1,0 +1,747 @@
+"""``crop-sim evaluate --task TASK``: the evaluation protocol of a family task.
+
+    crop-sim evaluate --task benton-quota --agents 'ppo=runs/benton-quota-ppo-s*' [--noise-seeds 5]
+        [--far-seasons 50] [--bootstrap 2000] [--oracle | --no-oracle] [--curves | --no-curves] [--out DIR]
+
+Evaluation sets (every one is the task's terms on other weather, :func:`~crop_sim_ros.task.scenario.with_weather_of`;
+nothing here was seen in training or used to choose anything):
+
+- ``heldout-real``: the real seasons, Benton 2000 and Paterson 1992-1995 (scenario ``heldout``);
+- ``far-<generator>``: the task's own weather generator (each part's, for a mixture) with seed ``--far-seed``
+  (900,001; training uses seed 0, validation 10,007 + the training seed), ``--far-seasons`` seasons;
+- ``maricopa-generated`` (re-seeded likewise) and ``maricopa-real`` (2007-2009): the held-out climate. For a
+  task trained on one climate (the Benton tasks) these are a transfer test, and the tables say so.
+
+Terms: one draw of the task's episode terms (tuber price, water cost, quota) per season and set, from a
+fixed seed (``--terms-seed`` + the set's position), the same for every policy; each policy runs every season
+with noise seeds 0..K-1 (``--noise-seeds`` K). The oracle's return depends on the weather and the terms, not on
+the noise: one oracle plan per (set, season).
+
+Policies: the hindsight oracle (:class:`~crop_agent_ros.policies.family_oracle.FamilyOraclePolicy`, an upper
+bound that knows the season's weather), the tuned water-budget rule (``crop_agent_ros/policies/
+family_<task>.json``; tuned here on generated training seasons and written if missing, and the output says
+so), and the agents: ``--agents NAME=GLOB`` names a group of training runs (one run directory per training
+seed, each with ``model.zip`` + ``model.json`` of ``crop-sim train --task``), with the run's 1 % checkpoint
+(``early_model.zip``) as a row of its own.
+
+Statistics (USD/ha): regret = oracle return - policy return, per (training seed, season, noise seed). Means
+with 95 % bootstrap intervals from a hierarchical resample: training seeds, seasons and noise seeds each
+drawn with replacement (``--bootstrap`` resamples, seed ``--bootstrap-seed``); every policy of a set is
+resampled on the same seasons and noise seeds (and an agent's final and 1 % checkpoints on the same training
+seeds), so the ratio agent regret / rule regret and the final / 1 % regret ratio are paired: each resample's
+ratio is the ratio of that resample's means. Paired wins: the share of (training seed, season, noise seed)
+where the policy's return is above the rule's on the same season, terms and noise. Headroom: the rule's
+regret as a share of the oracle's mean return (the task is worth learning if >= 2 %). Learning is real when
+the final regret is at most half the 1 % checkpoint's.
+
+Without the oracle (``--no-oracle``) every "regret" is instead the **gap to the best evaluated policy** on each
+(season, noise seed), and every output labels it so: it is not a regret.
+
+Outputs in ``--out`` (default ``runs/eval-<task>``): ``table.csv`` (one row per set and policy), ``table.json``
+(every number, the per-episode returns, the terms, the seeds, the command, package versions), ``table.md``
+(one table per set), ``regret.png`` (regret with 95 % intervals per set), ``learning_curves.csv`` and
+``learning_curves.png`` (each run's held-out real regret against environment steps, from every checkpoint in
+its directory: ``*.zip`` with a ``.json`` giving ``timesteps_at_save``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import glob
+import json
+import platform
+import subprocess
+import sys
+import time
+import zipfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from crop_sim_ros.usage import UsageError, user_input
+
+FAR_SEED = 900_001
+TERMS_SEED = 4_049
+HEADROOM_PCT = 2.0          # the rule's regret must be at least this share of the oracle's return
+LEARNING_RATIO = 0.5        # learning is real when final regret <= this x the 1 % checkpoint's
+HELD_OUT_REAL = "heldout-real"
+MARICOPA = ("maricopa-generated", "maricopa-real")
+RULE = "budget-rule"
+ORACLE = "oracle"
+KINDS = ("oracle", "rule", "agent", "early")
+MAX_NOISE_SEEDS = 1_000
+MAX_RESAMPLES = 100_000
+CSV_COLUMNS = (
+    "set", "role", "policy", "kind", "group", "runs", "training_seeds", "seasons", "noise_seeds", "timesteps",
+    "reference", "return_usd_ha", "return_ci_low", "return_ci_high", "regret_usd_ha", "regret_ci_low",
+    "regret_ci_high", "regret_pct_of_reference", "regret_pct_ci_low", "regret_pct_ci_high", "ratio_to_rule",
+    "ratio_ci_low", "ratio_ci_high", "paired_wins", "paired_ties", "final_over_early", "final_over_early_ci_low",
+    "final_over_early_ci_high", "beats_rule", "learning_is_real", "note")
+
+
+def add_task_arguments(parser) -> None:
+    """The options of ``crop-sim evaluate --task`` (all but ``--out``, which ``crop-sim evaluate`` has)."""
+    parser.add_argument("--task", default=None, help="a family task (e.g. benton-quota): run its evaluation protocol")
+    parser.add_argument("--agents", action="append", default=[], metavar="NAME=GLOB",
+                        help="a group of trained runs (one directory per training seed, glob allowed, quote it), "
+                             "e.g. 'ppo=runs/benton-quota-ppo-s*'; repeat for more groups")
+    parser.add_argument("--noise-seeds", type=int, default=5, help="observation-noise seeds 0..K-1 per season")
+    parser.add_argument("--far-seasons", type=int, default=50, help="seasons of each far generated set")
+    parser.add_argument("--far-seed", type=int, default=FAR_SEED, help="weather seed of the far generated sets")
+    parser.add_argument("--terms-seed", type=int, default=TERMS_SEED, help="seed of the drawn terms (set i: + i)")
+    parser.add_argument("--bootstrap", type=int, default=2000, help="bootstrap resamples")
+    parser.add_argument("--bootstrap-seed", type=int, default=0)
+    parser.add_argument("--sets", default=None,
+                        help="comma-separated evaluation sets (default all: heldout-real, far-<generator>..., "
+                             "maricopa-generated, maricopa-real)")
+    parser.add_argument("--oracle", action=argparse.BooleanOptionalAction, default=True,
+                        help="plan the hindsight oracle per season (regret); --no-oracle: gaps to the best "
+                             "evaluated policy instead")
+    parser.add_argument("--curves", action=argparse.BooleanOptionalAction, default=True,
+                        help="learning curves from every checkpoint of each run on heldout-real")
+    parser.add_argument("--tune-seasons", type=int, default=200,
+                        help="if the task's tuned rule file is missing: generated training seasons to tune on")
+    parser.add_argument("--tune-candidates", type=int, default=192)
+    parser.add_argument("--tune-rounds", type=int, default=4)
+
+
+def add_arguments(parser) -> None:
+    """Every option, ``--out`` included (for a parser of this command alone)."""
+    add_task_arguments(parser)
+    parser.add_argument("--out", type=Path, default=None, help="output directory (default runs/eval-<task>)")
+
+
+# --- evaluation sets ------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class EvaluationSet:
+    """One evaluation set: the task's terms on ``scenario``'s weather, seasons ``seasons`` (indices)."""
+
+    name: str
+    role: str
+    scenario: object
+    seasons: np.ndarray
+
+
+def generator_sources(task) -> list:
+    """The generated-weather scenarios a task trains on: itself, or each part of its mixture."""
+    from crop_sim_ros.task.scenario import get_scenario
+    if task.weather.kind == "generator":
+        return [task]
+    if task.weather.kind == "mixture":
+        return [get_scenario(name, task.data_dir) for name in task.weather.mixture]
+    raise UsageError(f"--task: {task.name!r} does not train on generated weather (its weather is "
+                     f"{task.weather.kind!r}); the protocol evaluates tasks trained on generated seasons")
+
+
+def reseeded(source, seed: int, n_seasons: int):
+    """``source``'s generator with another seed and pool size (seasons no training or validation pool holds)."""
+    return replace(source, name=f"{source.weather.generator}-generated-seed{seed}",
+                   weather=replace(source.weather, seed=seed, n_seasons=n_seasons))
+
+
+def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[EvaluationSet]:
+    """The protocol's sets for ``task`` (see the module docstring), in table order."""
+    from crop_sim_ros.task.scenario import get_scenario, with_weather_of
+    sources = generator_sources(task)
+    climates = sorted({s.weather.generator for s in sources})
+    held_out_climate = ("held-out climate" if len(climates) > 1
+                        else f"transfer test: trained on {climates[0]} weather only")
+    heldout = get_scenario("heldout", task.data_dir)
+    sets = [EvaluationSet(HELD_OUT_REAL, "held-out real seasons (Benton 2000, Paterson 1992-1995)",
+                          with_weather_of(task, heldout), np.arange(heldout.n_seasons))]
+    for source in sources:
+        generator = source.weather.generator
+        sets.append(EvaluationSet(f"far-{generator}", f"far generated seeds ({generator} generator, seed {far_seed})",
+                                  with_weather_of(task, reseeded(source, far_seed, far_seasons)),
+                                  np.arange(far_seasons)))
+    generated, real = (get_scenario(name, task.data_dir) for name in MARICOPA)
+    sets.append(EvaluationSet("maricopa-generated",
+                              f"{held_out_climate} (Maricopa AZ generator, seed {far_seed})",
+                              with_weather_of(task, reseeded(generated, far_seed, far_seasons)), np.arange(far_seasons)))
+    sets.append(EvaluationSet("maricopa-real", f"{held_out_climate} (Maricopa AZ, real seasons 2007-2009)",
+                              with_weather_of(task, real), np.arange(real.n_seasons)))
+    return sets
+
+
+def set_terms(evaluation_set: EvaluationSet, seed: int) -> dict:
+    """One draw of the task's episode terms per season of the set (name -> (M,) array)."""
+    from ..policies.family_tuning import draw_terms
+    return draw_terms(evaluation_set.scenario, evaluation_set.seasons, seed)
+
+
+# --- policies -------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class AgentRun:
+    """One training run: its directory, training seed and saved policies ((timesteps, zip) by timesteps)."""
+
+    group: str
+    directory: Path
+    seed: int
+    checkpoints: tuple[tuple[int, Path], ...]
+
+    @property
+    def final(self) -> Path:
+        return self.directory / "model.zip"
+
+    @property
+    def early(self) -> Path | None:
+        path = self.directory / "early_model.zip"
+        return path if path.is_file() else None
+
+    def timesteps_of(self, path: Path) -> int:
+        return next(steps for steps, p in self.checkpoints if p == path)
+
+
+def _read_config(path: Path, what: str) -> dict:
+    with user_input(what):
+        config = json.loads(path.read_text(encoding="utf-8"))
+    if not isinstance(config, dict):
+        raise UsageError(f"{what}: {path} is not a JSON object")
+    return config
+
+
+def run_checkpoints(directory: Path, what: str) -> tuple[tuple[int, Path], ...]:
+    """Every saved policy of a run directory: each ``*.zip`` whose ``.json`` gives ``timesteps_at_save``
+    (``model``, ``early_model``, ``checkpoint_*``), one per step count, by step count."""
+    found: dict[int, Path] = {}
+    # the final and 1 % models first: a checkpoint saved at the same step is the same network
+    for path in sorted(directory.glob("*.zip"), key=lambda p: (p.name not in ("model.zip", "early_model.zip"), p.name)):
+        config_file = path.with_suffix(".json")
+        if not config_file.is_file():
+            continue
+        steps = _read_config(config_file, what).get("timesteps_at_save")
+        if isinstance(steps, int) and steps not in found:
+            found[steps] = path
+    return tuple(sorted(found.items()))
+
+
+def agent_runs(specs: list[str], task_name: str) -> dict[str, list[AgentRun]]:
+    """The groups of ``--agents NAME=GLOB`` (UsageError names a malformed spec, a pattern matching no run, a
+    run without a final model, a run of another task, or two runs of one training seed in a group)."""
+    groups: dict[str, list[AgentRun]] = {}
+    for spec in specs:
+        name, sep, pattern = spec.partition("=")
+        name, pattern = name.strip(), pattern.strip()
+        if not sep or not name or not pattern:
+            raise UsageError(f"--agents: {spec!r} is not NAME=GLOB (e.g. 'ppo=runs/benton-quota-ppo-s*')")
+        if name in groups or name in (RULE, ORACLE):
+            raise UsageError(f"--agents: the name {name!r} is taken; give each group its own name")
+        directories = sorted(Path(p) for p in glob.glob(pattern) if Path(p).is_dir())
+        if not directories:
+            raise UsageError(f"--agents {name}: no run directory matches {pattern!r}")
+        runs = []
+        for directory in directories:
+            what = f"--agents {name}"
+            if not (directory / "model.zip").is_file() or not (directory / "model.json").is_file():
+                raise UsageError(f"{what}: {directory} holds no model.zip + model.json (a finished "
+                                 "`crop-sim train --task` run)")
+            config = _read_config(directory / "model.json", what)
+            if config.get("task") != task_name:
+                raise UsageError(f"{what}: {directory} was trained on {config.get('task')!r}, not {task_name!r}")
+            runs.append(AgentRun(name, directory, int(config.get("seed", -1)), run_checkpoints(directory, what)))
+        seeds = [run.seed for run in runs]
+        if len(set(seeds)) != len(seeds):
+            raise UsageError(f"--agents {name}: training seeds {seeds} repeat; a group holds one run per seed")
+        groups[name] = runs
+    return groups
+
+
+def load_agent(path: Path, name: str):
+    """A trained policy file as a policy (UsageError if it is missing, corrupt or made for other spaces)."""
+    from .agent import LearnedPolicy
+    with user_input(f"--agents {name}", (ValueError, KeyError, OSError, zipfile.BadZipFile)):
+        return LearnedPolicy(path, name=name)
+
+
+def training_seasons(task, count: int) -> np.ndarray:
+    """``count`` generated training seasons of ``task``: the first of its pool, or of each mixture part."""
+    sources = generator_sources(task)
+    per_part = -(-count // len(sources))
+    offsets = np.cumsum([0] + [s.n_seasons for s in sources[:-1]])
+    picked = np.concatenate([offset + np.arange(min(per_part, s.n_seasons)) for offset, s in zip(offsets, sources)])
+    return picked[:count]
+
+
+def the_rule(task, args, log):
+    """The tuned rule of ``task`` and where it came from; tuned on training seasons and written if missing."""
+    from ..policies import family_tuning
+    path = family_tuning.rule_file(task.name)
+    if path.is_file():
+        with user_input(f"tuned rule {path}", (ValueError, KeyError, TypeError, OSError)):
+            return family_tuning.tuned_rule(task.name), {"file": str(path), "tuned_now": False}
+    seasons = training_seasons(task, args.tune_seasons)
+    log(f"{path} is missing: tuning the rule now on {len(seasons)} generated training seasons "
+        f"({args.tune_candidates} candidates, {args.tune_rounds} rounds) and writing it")
+    result = family_tuning.tune_rule(task, seasons, seed=0, candidates=args.tune_candidates,
+                                     rounds=args.tune_rounds, log=log)
+    family_tuning.write_tuned(task.name, result)
+    return family_tuning.tuned_rule(task.name), {"file": str(path), "tuned_now": True,
+                                                 "tuned_on_seasons": seasons.tolist()}
+
+
+def policy_returns(policy, evaluation_set: EvaluationSet, terms: dict, noise_seeds: int) -> np.ndarray:
+    """(M, K) returns (USD/ha) of ``policy`` on the set's M seasons with noise seeds 0..K-1, same terms."""
+    from ..policies.rollout import run_episodes
+    return np.stack([run_episodes(policy, evaluation_set.scenario, evaluation_set.seasons, seed=seed,
+                                  terms=terms).episode_return for seed in range(noise_seeds)], axis=1)
+
+
+def oracle_returns(evaluation_set: EvaluationSet, terms: dict) -> np.ndarray:
+    """(M,) returns (USD/ha) of the hindsight oracle's plan of each season under its terms (noise seed 0: the
+    plan does not read the observation)."""
+    from ..policies.family_oracle import FamilyOraclePolicy
+    from ..policies.rollout import run_episodes
+    return run_episodes(FamilyOraclePolicy(), evaluation_set.scenario, evaluation_set.seasons, seed=0,
+                        terms=terms).episode_return
+
+
+# --- statistics ------------------------------------------------------------------------------------------
+
+def resample_counts(rng: np.random.Generator, units: int, resamples: int) -> np.ndarray:
+    """(resamples, units): how often each unit is drawn in each resample of ``units`` draws with replacement."""
+    draws = rng.integers(0, units, size=(resamples, units))
+    flat = (draws + units * np.arange(resamples)[:, None]).ravel()
+    return np.bincount(flat, minlength=resamples * units).reshape(resamples, units)
+
+
+def grid_means(values: np.ndarray, runs: np.ndarray, seasons: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """(B,) mean of ``values`` (R, M, K) over each resample's grid: training runs x seasons x noise seeds,
+    each unit counted as often as it was drawn (counts (B, R), (B, M), (B, K))."""
+    r, m, k = values.shape
+    if runs.shape[1:] != (r,) or seasons.shape[1:] != (m,) or noise.shape[1:] != (k,):
+        raise ValueError(f"resample counts {runs.shape}, {seasons.shape}, {noise.shape} do not fit values "
+                         f"{values.shape}")
+    return np.einsum("rmk,br,bm,bk->b", values, runs, seasons, noise, optimize=True) / (r * m * k)
+
+
+@dataclass(frozen=True)
+class Resamples:
+    """The hierarchical bootstrap of one set: season and noise-seed counts shared by every policy, and the
+    training-seed counts of each agent group (shared by its final and 1 % checkpoints)."""
+
+    seasons: np.ndarray
+    noise: np.ndarray
+    runs: dict
+
+    @classmethod
+    def draw(cls, seed: int, set_index: int, seasons: int, noise_seeds: int, group_sizes: dict,
+             resamples: int) -> "Resamples":
+        rng = np.random.default_rng([seed, set_index])
+        season_counts = resample_counts(rng, seasons, resamples)
+        noise_counts = resample_counts(rng, noise_seeds, resamples)
+        runs = {group: resample_counts(np.random.default_rng([seed, set_index, i + 1]), size, resamples)
+                for i, (group, size) in enumerate(group_sizes.items())}
+        return cls(season_counts, noise_counts, runs)
+
+    def means(self, values: np.ndarray, group: str | None = None) -> np.ndarray:
+        """(B,) resampled means of ``values`` (R, M, K); no group: one run (the rule, the oracle)."""
+        runs = self.runs[group] if group is not None else np.ones((len(self.seasons), 1), dtype=np.int64)
+        return grid_means(values, runs, self.seasons, self.noise)
+
+
+def interval(distribution: np.ndarray) -> tuple[float, float]:
+    """The 95 % percentile interval of a bootstrap distribution (NaN if any resample is undefined)."""
+    if not np.all(np.isfinite(distribution)):
+        return float("nan"), float("nan")
+    low, high = np.percentile(distribution, [2.5, 97.5])
+    return float(low), float(high)
+
+
+@dataclass
+class Evaluated:
+    """Returns (USD/ha) of one policy on one set, shape (R, M, K): training runs x seasons x noise seeds (R = 1
+    for the rule and the oracle)."""
+
+    name: str
+    kind: str
+    returns: np.ndarray
+    group: str | None = None
+    timesteps: tuple[int, ...] = ()
+    training_seeds: tuple[int, ...] = ()
+    partner: str | None = None   # a final agent's 1 % checkpoint row
+
+
+def _ratio(numerator: np.ndarray, denominator: np.ndarray) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(denominator > 0, numerator / np.where(denominator > 0, denominator, 1.0), np.nan)
+
+
+def compare(evaluated: list[Evaluated], reference: np.ndarray, resamples: Resamples, with_oracle: bool) -> list[dict]:
+    """One row per policy: return, regret (or gap) with 95 % intervals, as % of the reference's mean return,
+    ratio to the rule (paired), paired wins against the rule, final / 1 % ratio, and the note."""
+    rule = next(e for e in evaluated if e.kind == "rule")
+    reference = np.asarray(reference, dtype=float)[None]           # (1, M, K)
+    reference_mean, reference_dist = float(reference.mean()), resamples.means(reference)
+    rule_regret = reference - rule.returns
+    rule_dist = resamples.means(rule_regret)
+    by_name = {e.name: e for e in evaluated}
+    word = "regret" if with_oracle else "gap"
+    rows = []
+    for e in evaluated:
+        regret = reference - e.returns
+        dist = resamples.means(regret, e.group)
+        returns_dist = resamples.means(e.returns, e.group)
+        ratio = float(regret.mean() / rule_regret.mean()) if rule_regret.mean() > 0 else float("nan")
+        ratio_low, ratio_high = interval(_ratio(dist, rule_dist))
+        row = {"policy": e.name, "kind": e.kind, "group": e.group or "", "runs": len(e.returns),
+               "training_seeds": " ".join(map(str, e.training_seeds)), "seasons": e.returns.shape[1],
+               "noise_seeds": e.returns.shape[2],
+               "timesteps": " ".join(map(str, e.timesteps)),
+               "reference": "oracle" if with_oracle else "best evaluated policy (gap, not regret)",
+               "return_usd_ha": float(e.returns.mean()), **_named_interval("return", interval(returns_dist)),
+               "regret_usd_ha": float(regret.mean()), **_named_interval("regret", interval(dist)),
+               "regret_pct_of_reference": 100.0 * float(regret.mean()) / reference_mean,
+               **_named_interval("regret_pct", interval(100.0 * dist / reference_dist)),
+               "ratio_to_rule": ratio, "ratio_ci_low": ratio_low, "ratio_ci_high": ratio_high,
+               "paired_wins": float(np.mean(e.returns > rule.returns)),
+               "paired_ties": float(np.mean(e.returns == rule.returns)),
+               "final_over_early": float("nan"), "final_over_early_ci_low": float("nan"),
+               "final_over_early_ci_high": float("nan"), "beats_rule": "", "learning_is_real": ""}
+        notes = []
+        if e.kind == "oracle":
+            notes.append("hindsight upper bound (plans knowing the season's weather)")
+        elif e.kind == "rule":
+            headroom = row["regret_pct_of_reference"]
+            notes.append("the best tuned rule; " + (
+                f"headroom: regret {headroom:.1f} % of the oracle's return "
+                + ("(>= " if headroom >= HEADROOM_PCT else "(NOT >= ") + f"{HEADROOM_PCT:g} %)" if with_oracle
+                else "headroom unknown without the oracle"))
+        elif e.kind == "early":
+            notes.append(f"1 % checkpoint ({_steps_text(e.timesteps)} steps)")
+        if e.kind in ("agent", "early"):
+            beats = bool(np.isfinite(ratio_high) and ratio_high < 1.0)
+            row["beats_rule"] = beats
+            notes.append("beats the rule" if beats else "no better than the rule")
+        if e.kind == "agent" and e.partner is not None:
+            early = by_name[e.partner]
+            early_regret = reference - early.returns
+            row["final_over_early"] = float(regret.mean() / early_regret.mean()) if early_regret.mean() > 0 \
+                else float("nan")
+            low, high = interval(_ratio(dist, resamples.means(early_regret, e.group)))
+            row["final_over_early_ci_low"], row["final_over_early_ci_high"] = low, high
+            real = bool(row["final_over_early"] <= LEARNING_RATIO)
+            row["learning_is_real"] = real
+            notes.append(f"final / 1 % {word} {_fmt(row['final_over_early'], 2)} [{_fmt(low, 2)}, {_fmt(high, 2)}]: "
+                         + ("learning is real" if real else f"NOT <= {LEARNING_RATIO:g}"))
+        elif e.kind == "agent":
+            notes.append("no 1 % checkpoint in the run directories")
+        if not np.isfinite(ratio_low) and e.kind != "oracle":
+            notes.append(f"ratio undefined: the rule's {word} is not positive in every resample")
+        row["note"] = "; ".join(notes)
+        rows.append(row)
+    return rows
+
+
+def _named_interval(prefix: str, bounds: tuple[float, float]) -> dict:
+    return {f"{prefix}_ci_low": bounds[0], f"{prefix}_ci_high": bounds[1]}
+
+
+def _steps_text(timesteps) -> str:
+    steps = sorted(set(timesteps))
+    return f"{steps[0]:,}" if len(steps) == 1 else f"{steps[0]:,}-{steps[-1]:,}"
+
+
+def _fmt(value: float, digits: int = 0) -> str:
+    return "n/a" if value is None or not np.isfinite(value) else f"{value:,.{digits}f}"
+
+
+# --- the run --------------------------------------------------------------------------------------------
+
+def _check_arguments(args) -> None:
+    checks = (("--noise-seeds", args.noise_seeds, 1, MAX_NOISE_SEEDS), ("--bootstrap", args.bootstrap, 100, MAX_RESAMPLES),
+              ("--far-seasons", args.far_seasons, 1, 10_000), ("--far-seed", args.far_seed, 0, 2**32 - 1),
+              ("--terms-seed", args.terms_seed, 0, 2**32 - 1), ("--bootstrap-seed", args.bootstrap_seed, 0, 2**32 - 1),
+              ("--tune-seasons", args.tune_seasons, 1, 10_000), ("--tune-candidates", args.tune_candidates, 2, 100_000),
+              ("--tune-rounds", args.tune_rounds, 0, 100))
+    for name, value, low, high in checks:
+        if not low <= value <= high:
+            raise UsageError(f"{name}: {value} is not in {low}..{high}")
+
+
+def _task(name: str | None):
+    from crop_sim_ros.task.scenario import get_scenario
+    if not name:
+        raise UsageError("--task: give a family task, e.g. --task benton-quota")
+    with user_input("--task"):
+        task = get_scenario(name)
+    if not task.is_family_task:
+        raise UsageError(f"--task: {name!r} is not a family task (its observation has 20 values)")
+    return task
+
+
+def _chosen_sets(sets: list[EvaluationSet], text: str | None) -> list[EvaluationSet]:
+    if text is None:
+        return sets
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    known = [s.name for s in sets]
+    unknown = [n for n in names if n not in known]
+    if unknown or not names:
+        raise UsageError(f"--sets: {', '.join(unknown) or repr(text)} unknown; this task's sets: {', '.join(known)}")
+    return [s for s in sets if s.name in names]
+
+
+def _versions() -> dict:
+    from importlib import metadata
+    versions = {"python": platform.python_version()}
+    for package in ("numpy", "gymnasium", "torch", "stable-baselines3", "sb3-contrib", "matplotlib"):
+        try:
+            versions[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            versions[package] = None
+    root = Path(__file__).resolve().parents[2]
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
+        versions["git_commit"] = commit.stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        versions["git_commit"] = None
+    return versions
+
+
+def run_task(args) -> dict:
+    """Run the protocol of ``args.task`` (see the module docstring); writes the outputs and returns the
+    ``table.json`` content."""
+    started = time.perf_counter()
+    log = _log
+    _check_arguments(args)
+    task = _task(args.task)
+    out = Path(args.out) if getattr(args, "out", None) else Path("runs") / f"eval-{task.name}"
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out: {out} exists and is not a directory")
+    sets = _chosen_sets(evaluation_sets(task, args.far_seasons, args.far_seed), args.sets)
+    groups = agent_runs(args.agents, task.name)
+    if args.oracle:
+        try:
+            from ..policies import family_oracle  # noqa: F401
+        except ModuleNotFoundError:
+            raise UsageError("--oracle: the family oracle (crop_agent_ros/policies/family_oracle.py) is not "
+                             "available; --no-oracle reports gaps to the best evaluated policy instead") from None
+    rule, rule_info = the_rule(task, args, log)
+    agents = {group: [(run, load_agent(run.final, group),
+                       None if run.early is None else load_agent(run.early, f"{group}-1%")) for run in runs]
+              for group, runs in groups.items()}
+    wall = {"setup_s": time.perf_counter() - started}
+    out.mkdir(parents=True, exist_ok=True)
+    report_sets, rows, curve_inputs = [], [], None
+    cache: dict[tuple[str, str], np.ndarray] = {}
+    for index, evaluation_set in enumerate(sets):
+        t0 = time.perf_counter()
+        terms_seed = args.terms_seed + index
+        terms = set_terms(evaluation_set, terms_seed)
+        m, k = len(evaluation_set.seasons), args.noise_seeds
+        evaluated: list[Evaluated] = []
+        oracle = None
+        if args.oracle:
+            log(f"{evaluation_set.name}: planning the oracle on {m} seasons")
+            oracle = oracle_returns(evaluation_set, terms)
+            evaluated.append(Evaluated(ORACLE, "oracle", np.broadcast_to(oracle[None, :, None], (1, m, k)).copy()))
+        log(f"{evaluation_set.name}: {RULE} and {sum(len(r) for r in agents.values())} agent runs, {m} seasons x "
+            f"{k} noise seeds")
+        evaluated.append(Evaluated(RULE, "rule", policy_returns(rule, evaluation_set, terms, k)[None]))
+        for group, runs in agents.items():
+            finals, earlies = [], []
+            for run, final, early in runs:
+                finals.append(policy_returns(final, evaluation_set, terms, k))
+                cache[(evaluation_set.name, str(run.final))] = finals[-1]
+                if early is not None:
+                    earlies.append(policy_returns(early, evaluation_set, terms, k))
+                    cache[(evaluation_set.name, str(run.early))] = earlies[-1]
+            seeds = tuple(run.seed for run, _, _ in runs)
+            has_early = len(earlies) == len(runs)
+            evaluated.append(Evaluated(group, "agent", np.stack(finals), group,
+                                       tuple(run.timesteps_of(run.final) for run, _, _ in runs), seeds,
+                                       partner=f"{group}, 1 % checkpoint" if has_early else None))
+            if has_early:
+                evaluated.append(Evaluated(f"{group}, 1 % checkpoint", "early", np.stack(earlies), group,
+                                           tuple(run.timesteps_of(run.early) for run, _, _ in runs), seeds))
+        reference = (np.broadcast_to(oracle[:, None], (m, k)) if oracle is not None
+                     else np.max([e.returns.max(axis=0) for e in evaluated], axis=0))
+        resamples = Resamples.draw(args.bootstrap_seed, index, m, k, {g: len(r) for g, r in agents.items()},
+                                   args.bootstrap)
+        set_rows = [{"set": evaluation_set.name, "role": evaluation_set.role, **row}
+                    for row in compare(evaluated, reference, resamples, oracle is not None)]
+        rows.extend(set_rows)
+        if evaluation_set.name == HELD_OUT_REAL:
+            curve_inputs = (evaluation_set, terms, reference)
+        from crop_sim_ros.task import core
+        table = core.scenario_table(evaluation_set.scenario)
+        report_sets.append({
+            "name": evaluation_set.name, "role": evaluation_set.role, "scenario": evaluation_set.scenario.name,
+            "seasons": evaluation_set.seasons.tolist(),
+            "season_sources": [f"{table.sources[s]} sown {table.sowing_dates[s]}" for s in evaluation_set.seasons],
+            "terms_seed": terms_seed, "terms": {name: values.tolist() for name, values in terms.items()},
+            "oracle_returns_usd_ha": None if oracle is None else oracle.tolist(),
+            "reference": "oracle" if oracle is not None else "best evaluated policy per (season, noise seed)",
+            "returns_usd_ha": {e.name: e.returns.tolist() for e in evaluated},
+            "returns_shape": "training runs x seasons x noise seeds", "rows": set_rows,
+            "wall_s": round(time.perf_counter() - t0, 1)})
+        log(f"{evaluation_set.name}: done in {time.perf_counter() - t0:.0f} s")
+    curves: list[dict] = []
+    if args.curves and groups:
+        if curve_inputs is None:
+            log(f"no learning curves: --sets leaves out {HELD_OUT_REAL}")
+        else:
+            t0 = time.perf_counter()
+            curves = learning_curve_rows(groups, *curve_inputs, args.noise_seeds, cache)
+            wall["learning_curves_s"] = round(time.perf_counter() - t0, 1)
+    wall["total_s"] = round(time.perf_counter() - started, 1)
+    result = {
+        "task": task.name, "command": "crop-sim " + " ".join(sys.argv[1:]),
+        "arguments": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
+                      if not k.startswith("_") and k != "func"},
+        "regret": ("oracle return - policy return, USD/ha" if args.oracle
+                   else "NO ORACLE: gap to the best evaluated policy per (season, noise seed), USD/ha; not a regret"),
+        "seeds": {"far_weather_seed": args.far_seed, "terms_seed_base": args.terms_seed,
+                  "noise_seeds": list(range(args.noise_seeds)), "bootstrap_seed": args.bootstrap_seed,
+                  "bootstrap_resamples": args.bootstrap, "oracle_noise_seed": 0},
+        "rule": {**rule_info, **rule.describe()},
+        "agents": {group: [{"directory": str(run.directory), "training_seed": run.seed,
+                            "checkpoints": [[steps, str(path)] for steps, path in run.checkpoints]} for run in runs]
+                   for group, runs in groups.items()},
+        "sets": report_sets, "learning_curves": curves, "versions": _versions(), "wall_s": wall}
+    write_outputs(out, result, rows, curves)
+    log(f"wrote {out}/table.md, table.csv, table.json, regret.png"
+        + (", learning_curves.csv, learning_curves.png" if curves else "") + f" in {wall['total_s']:.0f} s")
+    return result
+
+
+def learning_curve_rows(groups: dict, evaluation_set: EvaluationSet, terms: dict, reference: np.ndarray,
+                        noise_seeds: int, cache: dict) -> list[dict]:
+    """Each run's mean regret (or gap) on ``evaluation_set`` at every saved checkpoint, by environment steps."""
+    rows = []
+    for group, runs in groups.items():
+        for run in runs:
+            for steps, path in run.checkpoints:
+                returns = cache.get((evaluation_set.name, str(path)))
+                if returns is None:
+                    returns = policy_returns(load_agent(path, group), evaluation_set, terms, noise_seeds)
+                rows.append({"group": group, "run": str(run.directory), "training_seed": run.seed,
+                             "checkpoint": path.name, "timesteps": steps,
+                             "return_usd_ha": float(returns.mean()),
+                             "regret_usd_ha": float((reference - returns).mean())})
+    return rows
+
+
+def _log(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+# --- outputs --------------------------------------------------------------------------------------------
+
+def write_outputs(out: Path, result: dict, rows: list[dict], curves: list[dict]) -> None:
+    (out / "table.json").write_text(json.dumps(result, indent=1, default=_json_default) + "\n", encoding="utf-8")
+    with open(out / "table.csv", "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+    (out / "table.md").write_text(markdown(result), encoding="utf-8")
+    plot_regret(out / "regret.png", result)
+    if curves:
+        with open(out / "learning_curves.csv", "w", newline="", encoding="utf-8") as f:
+            writer = csv.DictWriter(f, fieldnames=list(curves[0]))
+            writer.writeheader()
+            writer.writerows(curves)
+        rule_regret = next(r for s in result["sets"] if s["name"] == HELD_OUT_REAL for r in s["rows"]
+                           if r["kind"] == "rule")["regret_usd_ha"]
+        plot_learning_curves(out / "learning_curves.png", curves, rule_regret, result)
+
+
+def _json_default(value):
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return str(value)
+
+
+def markdown(result: dict) -> str:
+    with_oracle = result["sets"][0]["reference"] == "oracle"
+    word = "regret" if with_oracle else "gap to best"
+    lines = [f"# Evaluation of {result['task']}", ""]
+    if not with_oracle:
+        lines += ["**No oracle**: every 'gap' below is the gap to the best evaluated policy on each (season, noise "
+                  "seed), not a regret.", ""]
+    lines += [f"Returns and {word} in USD/ha; [95 % bootstrap CI] over training seeds x seasons x noise seeds "
+              f"({result['seeds']['bootstrap_resamples']} resamples). Ratio to rule: agent {word} / rule {word}, "
+              "paired resamples; paired wins: share of (training seed, season, noise seed) where the policy's "
+              "return is above the rule's. Rule: " + f"`{result['rule']['file']}`"
+              + (" (tuned by this run)" if result["rule"]["tuned_now"] else "") + ".", ""]
+    reference = "oracle" if with_oracle else "best"
+    for s in result["sets"]:
+        lines += [f"## {s['name']}: {s['role']}", "",
+                  f"{len(s['seasons'])} seasons x {len(result['seeds']['noise_seeds'])} noise seeds; terms seed "
+                  f"{s['terms_seed']}.", "",
+                  f"| policy | return | {word} [95 % CI] | {word} % of {reference} | ratio to rule [95 % CI] | "
+                  "paired wins | note |", "|---|---:|---:|---:|---:|---:|---|"]
+        for r in s["rows"]:
+            runs = f" ({r['runs']} runs)" if r["kind"] in ("agent", "early") else ""
+            regret = ("0 (reference)" if r["kind"] == "oracle" else
+                      f"{_fmt(r['regret_usd_ha'])} [{_fmt(r['regret_ci_low'])}, {_fmt(r['regret_ci_high'])}]")
+            ratio = ("-" if r["kind"] in ("oracle", "rule") else
+                     f"{_fmt(r['ratio_to_rule'], 2)} [{_fmt(r['ratio_ci_low'], 2)}, {_fmt(r['ratio_ci_high'], 2)}]")
+            wins = "-" if r["kind"] == "rule" else f"{100 * r['paired_wins']:.0f} %"
+            lines.append(f"| {r['policy']}{runs} | {_fmt(r['return_usd_ha'])} | {regret} | "
+                         f"{_fmt(r['regret_pct_of_reference'], 2)} % | {ratio} | {wins} | {r['note']} |")
+        lines.append("")
+    if result["learning_curves"]:
+        lines += ["Learning curves (held-out real regret against environment steps): `learning_curves.png`, "
+                  "`learning_curves.csv`.", ""]
+    return "\n".join(lines)
+
+
+def plot_regret(path: Path, result: dict) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    sets = result["sets"]
+    word = "regret" if sets[0]["reference"] == "oracle" else "gap to the best evaluated policy"
+    fig, axes = plt.subplots(1, len(sets), figsize=(3.2 * len(sets) + 1, 4.2), squeeze=False)
+    for ax, s in zip(axes[0], sets):
+        rows = [r for r in s["rows"] if r["kind"] != "oracle"]
+        x = np.arange(len(rows))
+        means = np.array([r["regret_usd_ha"] for r in rows])
+        errors = np.array([[m - r["regret_ci_low"], r["regret_ci_high"] - m] for m, r in zip(means, rows)]).T
+        colors = ["tab:gray" if r["kind"] == "rule" else "tab:orange" if r["kind"] == "early" else "tab:blue"
+                  for r in rows]
+        ax.bar(x, means, yerr=np.nan_to_num(errors), color=colors, capsize=3)
+        ax.set_xticks(x, [r["policy"] for r in rows], rotation=30, ha="right", fontsize=8)
+        ax.set_title(f"{s['name']}\n({len(s['seasons'])} seasons)", fontsize=9)
+        ax.axhline(0.0, color="black", lw=0.8)
+    axes[0][0].set_ylabel(f"{word}, USD/ha (95 % CI)")
+    fig.suptitle(f"{result['task']}: {word} per evaluation set", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_learning_curves(path: Path, curves: list[dict], rule_regret: float, result: dict) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    word = "regret" if result["sets"][0]["reference"] == "oracle" else "gap to the best evaluated policy"
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    colors = dict(zip(sorted({c["group"] for c in curves}), plt.rcParams["axes.prop_cycle"].by_key()["color"]))
+    labelled = set()
+    for run in sorted({c["run"] for c in curves}):
+        points = sorted((c for c in curves if c["run"] == run), key=lambda c: c["timesteps"])
+        group = points[0]["group"]
+        ax.plot([p["timesteps"] for p in points], [p["regret_usd_ha"] for p in points], marker="o",
+                color=colors[group], label=None if group in labelled else group)
+        labelled.add(group)
+    ax.axhline(rule_regret, color="gray", ls="--", label=f"{RULE} ({rule_regret:,.0f})")
+    ax.set_xscale("log")
+    ax.set_xlabel("environment steps (field-days)")
+    ax.set_ylabel(f"{HELD_OUT_REAL} {word}, USD/ha")
+    ax.set_title(f"{result['task']}: learning curves on the held-out real seasons", fontsize=10)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def run(args) -> int:
+    run_task(args)
+    return 0

@@ -1,0 +1,320 @@
+"""The family tasks' evaluation protocol (crop_agent_ros.learning.evaluate_task): sets, paired runs, the
+hierarchical bootstrap, the tables and plots. Tiny budgets: a PPO agent trained for 2,048 steps here, 2-season
+generated sets, 2 noise seeds, 200 resamples."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from crop_agent_ros.learning import evaluate_task as et
+from crop_sim_ros.usage import UsageError
+
+TASK = "benton-quota"
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    et.add_arguments(parser)
+    return parser.parse_args(argv)
+
+
+@pytest.fixture(scope="module")
+def rule_dir(tmp_path_factory):
+    """The tuned-rule files live here (the package's family_<task>.json are never touched by the tests)."""
+    from crop_agent_ros.policies import family_tuning
+    directory = tmp_path_factory.mktemp("rules")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(family_tuning, "rule_file", lambda task: directory / f"family_{task}.json")
+        yield directory
+
+
+@pytest.fixture(scope="module")
+def trained_run(tmp_path_factory) -> Path:
+    """One PPO run of the quota task, 2,048 steps, with its 1 % checkpoint and intermediate checkpoints."""
+    from crop_agent_ros import train
+    from crop_agent_ros.learning.train_task import train_task
+    out = tmp_path_factory.mktemp("runs") / f"{TASK}-ppo-s0"
+    parser = argparse.ArgumentParser()
+    train.add_arguments(parser)
+    args = parser.parse_args(["--task", TASK, "--seed", "0", "--timesteps", "2048", "--n-envs", "8", "--n-steps",
+                              "64", "--batch-size", "128", "--n-epochs", "2", "--eval-freq", "1024",
+                              "--validation-seasons", "4", "--net-arch", "16,16", "--no-progress", "--out", str(out)])
+    train_task(args)
+    return out
+
+
+@pytest.fixture(scope="module")
+def evaluation(rule_dir, trained_run, tmp_path_factory):
+    """The protocol on the held-out real seasons and a 2-season far generated set, without the oracle (a
+    missing rule file: tuned now on 4 seasons)."""
+    out = tmp_path_factory.mktemp("eval")
+    args = parse(["--task", TASK, "--agents", f"ppo={trained_run.parent}/{TASK}-ppo-s*", "--no-oracle",
+                  "--noise-seeds", "2", "--far-seasons", "2", "--sets", "heldout-real,far-benton",
+                  "--bootstrap", "200", "--tune-seasons", "4", "--tune-candidates", "6", "--tune-rounds", "1",
+                  "--out", str(out)])
+    result = et.run_task(args)
+    return out, result, trained_run
+
+
+def rows_of(out: Path) -> list[dict]:
+    with open(out / "table.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+# --- the end-to-end run ----------------------------------------------------------------------------------
+
+def test_outputs_have_every_column_set_and_policy(evaluation):
+    out, result, run = evaluation
+    with open(out / "table.csv", newline="") as f:
+        header = next(csv.reader(f))
+    assert tuple(header) == et.CSV_COLUMNS
+    rows = rows_of(out)
+    assert [(r["set"], r["policy"], r["kind"]) for r in rows] == [
+        (s, p, k) for s in ("heldout-real", "far-benton")
+        for p, k in (("budget-rule", "rule"), ("ppo", "agent"), ("ppo, 1 % checkpoint", "early"))]
+    by_set = {s["name"]: s for s in result["sets"]}
+    assert len(by_set["heldout-real"]["seasons"]) == 5 and len(by_set["far-benton"]["seasons"]) == 2
+    for r in rows:
+        assert r["noise_seeds"] == "2" and r["reference"].startswith("best evaluated policy")
+        for column in ("return_usd_ha", "regret_usd_ha", "regret_pct_of_reference", "paired_wins"):
+            assert np.isfinite(float(r[column])), (r["policy"], column)
+    md = (out / "table.md").read_text()
+    assert md.count("| policy | return | gap to best [95 % CI] | gap to best % of best | ratio to rule [95 % CI] | "
+                    "paired wins | note |") == 2
+    assert "## heldout-real" in md and "## far-benton" in md and "not a regret" in md
+    for name in ("regret.png", "learning_curves.png"):
+        assert (out / name).read_bytes()[:8] == PNG_MAGIC
+    saved = json.loads((out / "table.json").read_text())
+    assert saved["seeds"] == {"far_weather_seed": 900_001, "terms_seed_base": et.TERMS_SEED, "noise_seeds": [0, 1],
+                              "bootstrap_seed": 0, "bootstrap_resamples": 200, "oracle_noise_seed": 0}
+    assert saved["versions"]["numpy"] == np.__version__ and saved["versions"]["stable-baselines3"]
+    assert saved["agents"]["ppo"][0]["directory"] == str(run)
+    assert saved["arguments"]["sets"] == "heldout-real,far-benton" and saved["command"].startswith("crop-sim")
+
+
+def test_missing_rule_file_is_tuned_on_training_seasons_and_written(evaluation, rule_dir):
+    out, result, _ = evaluation
+    path = rule_dir / f"family_{TASK}.json"
+    assert result["rule"] == {**result["rule"], "file": str(path), "tuned_now": True, "tuned_on_seasons": [0, 1, 2, 3]}
+    tuned = json.loads(path.read_text())
+    assert tuned["scenario"] == TASK and tuned["seasons"] == [0, 3]
+    assert "(tuned by this run)" in (out / "table.md").read_text()
+
+
+def test_every_policy_met_the_same_terms_and_noise_seeds(evaluation, rule_dir):
+    """Rerun each policy on the saved terms with noise seeds 0 and 1: the saved returns, bit for bit."""
+    from crop_agent_ros.learning.agent import LearnedPolicy
+    from crop_agent_ros.policies.family_tuning import tuned_rule
+    from crop_agent_ros.policies.rollout import run_episodes
+    from crop_sim_ros.task.scenario import get_scenario, with_weather_of
+    _, result, run = evaluation
+    saved = {s["name"]: s for s in result["sets"]}["far-benton"]
+    weather = get_scenario("benton-generated")
+    far = with_weather_of(get_scenario(TASK), replace(weather, weather=replace(weather.weather, seed=900_001,
+                                                                               n_seasons=2)))
+    terms = {k: np.array(v) for k, v in saved["terms"].items()}
+    assert len(set(terms["quota_mm"])) == 2 and all(150 <= q <= 450 for q in terms["quota_mm"])
+    for name, policy in (("budget-rule", tuned_rule(TASK)), ("ppo", LearnedPolicy(run / "model.zip")),
+                         ("ppo, 1 % checkpoint", LearnedPolicy(run / "early_model.zip"))):
+        again = np.stack([run_episodes(policy, far, [0, 1], seed=seed, terms=terms).episode_return
+                          for seed in (0, 1)], axis=1)
+        np.testing.assert_array_equal(np.array(saved["returns_usd_ha"][name]), again[None], err_msg=name)
+
+
+def test_cis_contain_their_means_and_gaps_are_to_the_best_policy(evaluation):
+    _, result, _ = evaluation
+    for s in result["sets"]:
+        returns = {name: np.array(values) for name, values in s["returns_usd_ha"].items()}
+        best = np.max([r.max(axis=0) for r in returns.values()], axis=0)       # (seasons, noise seeds)
+        for row in s["rows"]:
+            gap = best[None] - returns[row["policy"]]
+            assert row["regret_usd_ha"] == pytest.approx(gap.mean(), rel=1e-12, abs=1e-9)
+            assert row["return_usd_ha"] == pytest.approx(returns[row["policy"]].mean(), rel=1e-12)
+            for prefix, mean in (("return", row["return_usd_ha"]), ("regret", row["regret_usd_ha"]),
+                                 ("regret_pct", row["regret_pct_of_reference"])):
+                assert row[f"{prefix}_ci_low"] - 1e-9 <= mean <= row[f"{prefix}_ci_high"] + 1e-9, (row["policy"], prefix)
+            wins = np.mean(returns[row["policy"]] > returns["budget-rule"][None])
+            assert row["paired_wins"] == pytest.approx(wins)
+
+
+def test_learning_curves_read_every_checkpoint_of_the_run(evaluation):
+    out, result, run = evaluation
+    saved = sorted({json.loads(p.read_text())["timesteps_at_save"] for p in run.glob("*.json")
+                    if "timesteps_at_save" in json.loads(p.read_text())})
+    with open(out / "learning_curves.csv", newline="") as f:
+        curve = list(csv.DictReader(f))
+    assert [int(c["timesteps"]) for c in curve] == saved
+    assert len(saved) >= 3 and saved[-1] == 2048
+    final = next(c for c in curve if c["checkpoint"] == "model.zip")
+    heldout = next(r for r in rows_of(out) if r["set"] == "heldout-real" and r["policy"] == "ppo")
+    assert float(final["regret_usd_ha"]) == pytest.approx(float(heldout["regret_usd_ha"]), rel=1e-12)
+
+
+# --- statistics on arrays whose answers are known ---------------------------------------------------------
+
+def _synthetic(agent_returns: np.ndarray, rule_returns: np.ndarray, reference: np.ndarray, early=None, seed=3,
+               resamples=200):
+    runs = agent_returns.shape[0]
+    evaluated = [et.Evaluated("rule", "rule", rule_returns[None]),
+                 et.Evaluated("agent", "agent", agent_returns, "agent", (100,) * runs, tuple(range(runs)),
+                              partner=None if early is None else "agent-early")]
+    if early is not None:
+        evaluated.append(et.Evaluated("agent-early", "early", early, "agent", (1,) * runs, tuple(range(runs))))
+    boot = et.Resamples.draw(seed, 0, reference.shape[0], reference.shape[1], {"agent": runs}, resamples)
+    return et.compare(evaluated, reference, boot, with_oracle=True), boot
+
+
+def _by_hand_mean(values: np.ndarray, runs, seasons, noise) -> float:
+    """The mean over the resampled grid, written as loops over the drawn index lists."""
+    r_idx, m_idx, k_idx = (np.repeat(np.arange(len(c)), c) for c in (runs, seasons, noise))
+    total = sum(values[r, m, k] for r in r_idx for m in m_idx for k in k_idx)
+    return total / (len(r_idx) * len(m_idx) * len(k_idx))
+
+
+def test_ratio_ci_comes_from_paired_hierarchical_resamples():
+    rng = np.random.default_rng(11)
+    reference = rng.uniform(9000, 11000, (4, 3))                         # seasons x noise seeds
+    difficulty = rng.uniform(100, 2000, (4, 1))                          # hard seasons cost every policy
+    rule = reference - difficulty * rng.uniform(0.9, 1.1, (4, 3))
+    agent = reference[None] - 0.5 * difficulty * rng.uniform(0.8, 1.2, (3, 4, 3))   # 3 training seeds
+    rows, boot = _synthetic(agent, rule, reference)
+    assert boot.seasons.sum(axis=1).tolist() == [4] * 200 and boot.noise.sum(axis=1).tolist() == [3] * 200
+    assert boot.runs["agent"].sum(axis=1).tolist() == [3] * 200
+    # resamples differ (with replacement), and the same counts serve every policy of the set
+    assert len({tuple(c) for c in boot.seasons}) > 20
+    ratios = []
+    for b in range(200):
+        agent_mean = _by_hand_mean(reference[None] - agent, boot.runs["agent"][b], boot.seasons[b], boot.noise[b])
+        rule_mean = _by_hand_mean((reference - rule)[None], [1], boot.seasons[b], boot.noise[b])
+        ratios.append(agent_mean / rule_mean)
+        if b == 0:
+            assert boot.means(reference[None] - agent, "agent")[0] == pytest.approx(agent_mean, rel=1e-12)
+    row = next(r for r in rows if r["policy"] == "agent")
+    low, high = np.percentile(ratios, [2.5, 97.5])
+    assert (row["ratio_ci_low"], row["ratio_ci_high"]) == pytest.approx((low, high), rel=1e-12)
+    assert row["ratio_to_rule"] == pytest.approx((reference[None] - agent).mean() / (reference - rule).mean())
+    # unpaired resamples (agent and rule each on their own seasons) would give a much wider interval
+    other = et.Resamples.draw(4, 0, 4, 3, {"agent": 3}, 200)
+    unpaired = boot.means(reference[None] - agent, "agent") / other.means((reference - rule)[None])
+    assert np.percentile(unpaired, 97.5) - np.percentile(unpaired, 2.5) > 3 * (high - low)
+
+
+def test_a_policy_against_itself_has_ratio_one_and_no_wins():
+    rng = np.random.default_rng(5)
+    reference = rng.uniform(9000, 11000, (5, 2))
+    rule = reference - rng.uniform(100, 900, (5, 2))
+    rows, _ = _synthetic(rule[None].copy(), rule, reference)
+    row = next(r for r in rows if r["policy"] == "agent")
+    assert (row["ratio_to_rule"], row["ratio_ci_low"], row["ratio_ci_high"]) == pytest.approx((1.0, 1.0, 1.0))
+    assert row["paired_wins"] == 0.0 and row["paired_ties"] == 1.0
+    assert row["beats_rule"] is False and "no better than the rule" in row["note"]
+
+
+def test_note_says_beats_the_rule_only_when_the_ratio_ci_is_below_one():
+    rng = np.random.default_rng(8)
+    reference = rng.uniform(9000, 11000, (6, 2))
+    rule = reference - rng.uniform(400, 600, (6, 2))
+    better = reference[None] - rng.uniform(100, 200, (2, 6, 2))       # a third of the rule's regret
+    worse = reference[None] - rng.uniform(500, 700, (2, 6, 2))
+    good = next(r for r in _synthetic(better, rule, reference)[0] if r["policy"] == "agent")
+    bad = next(r for r in _synthetic(worse, rule, reference)[0] if r["policy"] == "agent")
+    assert good["ratio_ci_high"] < 1 and good["beats_rule"] is True and "beats the rule" in good["note"]
+    assert good["paired_wins"] == 1.0
+    assert bad["ratio_ci_low"] > 1 and bad["beats_rule"] is False and "no better than the rule" in bad["note"]
+
+
+def test_final_over_early_ratio_and_the_learning_criterion():
+    rng = np.random.default_rng(9)
+    reference = rng.uniform(9000, 11000, (4, 2))
+    rule = reference - 500.0
+    early = reference[None] - rng.uniform(1500, 2500, (3, 4, 2))
+    final = reference[None] - rng.uniform(300, 700, (3, 4, 2))
+    rows, boot = _synthetic(final, rule, reference, early=early)
+    row = next(r for r in rows if r["policy"] == "agent")
+    expected = (reference[None] - final).mean() / (reference[None] - early).mean()
+    assert row["final_over_early"] == pytest.approx(expected, rel=1e-12)
+    assert row["final_over_early_ci_low"] <= expected <= row["final_over_early_ci_high"] < 0.5
+    assert row["learning_is_real"] is True and "learning is real" in row["note"]
+    # the same resampled training seeds for the final and early models: swap them and the ratio inverts
+    swapped = next(r for r in _synthetic(early, rule, reference, early=final)[0] if r["policy"] == "agent")
+    assert swapped["final_over_early"] == pytest.approx(1 / expected, rel=1e-12)
+    assert swapped["learning_is_real"] is False and "NOT <= 0.5" in swapped["note"]
+
+
+def test_headroom_note_of_the_rule():
+    reference = np.full((3, 2), 10_000.0)
+    rows, _ = _synthetic(reference[None] - 100.0, reference - 300.0, reference)
+    assert "regret 3.0 % of the oracle's return (>= 2 %)" in rows[0]["note"]
+    rows, _ = _synthetic(reference[None] - 100.0, reference - 150.0, reference)
+    assert "regret 1.5 % of the oracle's return (NOT >= 2 %)" in rows[0]["note"]
+
+
+# --- sets and input ---------------------------------------------------------------------------------------
+
+def test_evaluation_sets_carry_the_task_terms_to_other_weather():
+    from crop_sim_ros.task.scenario import get_scenario
+    task = get_scenario(TASK)
+    sets = et.evaluation_sets(task, far_seasons=3)
+    assert [s.name for s in sets] == ["heldout-real", "far-benton", "maricopa-generated", "maricopa-real"]
+    for s in sets:
+        assert s.scenario.economics == task.economics and s.scenario.limits == task.limits
+        assert s.scenario.noise == task.noise and len(s.seasons) == s.scenario.n_seasons
+    far, maricopa = sets[1].scenario.weather, sets[2].scenario.weather
+    assert (far.generator, far.seed, far.n_seasons) == ("benton", 900_001, 3)
+    assert (maricopa.generator, maricopa.seed) == ("maricopa", 900_001)
+    assert [len(s.seasons) for s in sets] == [5, 3, 3, 3]
+    assert "transfer test: trained on benton weather only" in sets[2].role and "transfer" in sets[3].role
+    climates = et.evaluation_sets(get_scenario("climates-quota"), far_seasons=2)
+    assert [s.name for s in climates] == ["heldout-real", "far-benton", "far-gainesville", "maricopa-generated",
+                                          "maricopa-real"]
+    assert climates[2].scenario.weather.generator == "gainesville" and "held-out climate" in climates[3].role
+    assert climates[2].scenario.sowing_date == get_scenario("gainesville-generated").sowing_date
+
+
+def test_training_seasons_of_a_mixture_come_from_every_part():
+    from crop_sim_ros.task.scenario import get_scenario
+    assert et.training_seasons(get_scenario(TASK), 5).tolist() == [0, 1, 2, 3, 4]
+    assert et.training_seasons(get_scenario("climates-quota"), 4).tolist() == [0, 1, 1000, 1001]
+
+
+def test_resample_counts_draw_with_replacement():
+    counts = et.resample_counts(np.random.default_rng(0), 7, 1000)
+    assert counts.shape == (1000, 7) and (counts.sum(axis=1) == 7).all()
+    # each unit is drawn 1 time per resample on average, and some resamples leave units out
+    assert counts.mean() == pytest.approx(1.0, abs=0.05) and (counts == 0).any(axis=1).mean() > 0.9
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--task", "nowhere"], "--task: unknown scenario 'nowhere'"),
+    (["--task", "benton-generated"], "not a family task"),
+    (["--task", TASK, "--agents", "ppo"], "is not NAME=GLOB"),
+    (["--task", TASK, "--agents", "ppo=/nonexistent/run-*"], "no run directory matches"),
+    (["--task", TASK, "--noise-seeds", "0"], "--noise-seeds: 0 is not in"),
+    (["--task", TASK, "--sets", "heldout-real,moon"], "--sets: moon unknown"),
+])
+def test_bad_input_is_one_clear_usage_error(argv, message, tmp_path):
+    with pytest.raises(UsageError, match=message.replace("(", r"\(")):
+        et.run_task(parse(argv + ["--no-oracle", "--out", str(tmp_path / "out")]))
+    assert not (tmp_path / "out").exists()
+
+
+def test_runs_of_another_task_or_repeated_seeds_are_refused(trained_run, tmp_path):
+    other = tmp_path / "other-s0"
+    shutil.copytree(trained_run, other)
+    config = json.loads((other / "model.json").read_text())
+    (other / "model.json").write_text(json.dumps({**config, "task": "benton-money"}))
+    with pytest.raises(UsageError, match="trained on 'benton-money', not 'benton-quota'"):
+        et.agent_runs([f"ppo={other}"], TASK)
+    for name in ("a-s0", "b-s0"):
+        shutil.copytree(trained_run, tmp_path / name)
+    with pytest.raises(UsageError, match=r"training seeds \[0, 0\] repeat"):
+        et.agent_runs([f"ppo={tmp_path}/[ab]-s0"], TASK)
