@@ -12,9 +12,10 @@ the soil's water capacity, the cultivar's thermal time to maturity). Each day it
    PAW >= ET0 / 0.096. The rule refills to ``level_factor x ET0 / 0.096 + margin_mm`` (today's published
    ET0), counting today's rain.
 3. **Skips when rain is forecast** above ``skip_rain_mm``.
-4. **Stops late in the season**, once thermal time passes ``stop_tt_fraction`` of the cultivar's TT to
-   maturity: when the canopy senesces, stress costs little yield (SIMPLE's growth is proportional to the
-   intercepted radiation).
+4. **Irrigates only in the window of thermal time that pays**: from ``start_tt_fraction`` to
+   ``stop_tt_fraction`` of the cultivar's TT to maturity. SIMPLE's growth is proportional to the radiation the
+   canopy intercepts: stress costs little while the canopy is small (early: the full root zone carries the
+   crop) and once it senesces (late), so scarce water is worth most in between.
 5. **Budgets a quota**: it spends at most ``pace x remaining / max(days left, 1)`` today, so that an
    allocation lasts the nominal season (``pace`` inf: no budgeting).
 6. **Weighs money**: it irrigates only when the yield the water protects is worth more than it costs, a
@@ -61,6 +62,7 @@ class RuleParameters:
     level_factor: float = 1.0
     margin_mm: float = 5.0
     skip_rain_mm: float = 10.0
+    start_tt_fraction: float = 0.0
     stop_tt_fraction: float = 1.5
     pace: float = np.inf
     value_ratio: float = np.inf
@@ -118,8 +120,9 @@ class WaterBudgetRule(BasePolicy):
         level = p["level_factor"] * et0 / UPTAKE_PER_DAY + p["margin_mm"]
         amount = np.maximum(level - paw - obs[:, _COL["rain_mm"]], 0.0)
         amount = np.where(obs[:, _COL["forecast_rain_mm"]] > p["skip_rain_mm"], 0.0, amount)
-        late = obs[:, _COL["thermal_time_degc_d"]] > p["stop_tt_fraction"] * self.facts.tsum_degc_d
-        amount = np.where(late, 0.0, amount)
+        progress = obs[:, _COL["thermal_time_degc_d"]] / self.facts.tsum_degc_d
+        outside = (progress < p["start_tt_fraction"]) | (progress > p["stop_tt_fraction"])
+        amount = np.where(outside, 0.0, amount)
         left = obs[:, _COL["quota_remaining_mm"]]
         days_left = np.maximum(obs[:, _COL["season_days_left"]], 1.0)
         budget = np.where(np.isinf(p["pace"]), np.inf, np.where(np.isinf(p["pace"]), 0.0, p["pace"]) * left / days_left)

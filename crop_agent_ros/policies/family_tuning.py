@@ -26,11 +26,23 @@ SEARCH_BOX = {
     "level_factor": (0.3, 1.3),
     "margin_mm": (-40.0, 40.0),
     "skip_rain_mm": (0.0, 30.0),
+    "start_tt_fraction": (0.0, 0.6),
     "stop_tt_fraction": (0.5, 1.1),
     "pace": (0.3, 4.0),
     "value_ratio": (0.0, 0.05),
 }
-NEVER = {"skip_rain_mm": 1e6, "stop_tt_fraction": 10.0, "pace": np.inf, "value_ratio": np.inf}
+NEVER = {"skip_rain_mm": 1e6, "start_tt_fraction": 0.0, "stop_tt_fraction": 10.0, "pace": np.inf,
+         "value_ratio": np.inf}
+
+
+def training_seasons(scenario, first: int, last: int) -> np.ndarray:
+    """Seasons FIRST..LAST of the training pool; for a mixture, FIRST..LAST of each part (so that every
+    climate of the mixture is tuned on)."""
+    from crop_sim_ros.task.scenario import get_scenario
+    if scenario.weather.kind != "mixture":
+        return np.arange(first, last + 1)
+    offsets = np.cumsum([0] + [get_scenario(n, scenario.data_dir).n_seasons for n in scenario.weather.mixture])
+    return np.concatenate([offset + np.arange(first, last + 1) for offset in offsets[:-1]])
 
 
 def rule_file(task: str) -> Path:
@@ -106,7 +118,7 @@ def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 19
             pool = _perturb(rng, best, candidates, scale)
             scale /= 2.0
     return {"parameters": best[0], "mean_return": history[-1], "history": history,
-            "seasons": [int(seasons[0]), int(seasons[-1])], "seed": seed, "scenario": scenario.name,
+            "seasons": [int(s) for s in seasons], "seed": seed, "scenario": scenario.name,
             "facts": {"capacity_mm": facts.capacity_mm, "tsum_degc_d": facts.tsum_degc_d}}
 
 
@@ -130,7 +142,8 @@ def write_tuned(task: str, result: dict) -> Path:
 
 def add_arguments(parser) -> None:
     parser.add_argument("--task", required=True, help="a family task (e.g. benton-quota)")
-    parser.add_argument("--seasons", default="0..149", help="training seasons FIRST..LAST of the task's pool")
+    parser.add_argument("--seasons", default="0..149",
+                        help="training seasons FIRST..LAST of the task's pool (of each part of a mixture)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the search, the terms and the noise")
     parser.add_argument("--candidates", type=int, default=128, help="candidates per round (1..10000)")
     parser.add_argument("--rounds", type=int, default=4, help="local-search rounds after the random one (0..50)")
@@ -147,11 +160,13 @@ def run(args) -> int:
         first, last = (int(x) for x in str(args.seasons).split(".."))
     except ValueError:
         raise UsageError(f"--seasons {args.seasons!r}: expected FIRST..LAST, e.g. 0..149") from None
-    if not 0 <= first <= last < scenario.n_seasons:
-        raise UsageError(f"--seasons {args.seasons}: must lie within 0..{scenario.n_seasons - 1}")
+    pool = (scenario.n_seasons if scenario.weather.kind != "mixture"
+            else min(get_scenario(n).n_seasons for n in scenario.weather.mixture))
+    if not 0 <= first <= last < pool:
+        raise UsageError(f"--seasons {args.seasons}: must lie within 0..{pool - 1} (of each part of a mixture)")
     if not (1 <= args.candidates <= 10_000 and 0 <= args.rounds <= 50):
         raise UsageError("--candidates must be in 1..10000 and --rounds in 0..50")
-    result = tune_rule(scenario, np.arange(first, last + 1), args.seed, args.candidates, args.rounds)
+    result = tune_rule(scenario, training_seasons(scenario, first, last), args.seed, args.candidates, args.rounds)
     print(f"tuned {args.task}: {result['parameters']} mean return {result['mean_return']:.2f}; "
           f"wrote {write_tuned(args.task, result)}")
     return 0
