@@ -3,6 +3,9 @@
 Each sub-command lives in its own module, which
 provides ``add_arguments(parser)`` and ``run(args) -> int``; modules load only when their command runs,
 so ``crop-sim validate`` never pays for torch or rclpy.
+
+A mistake in a command's input (:class:`crop_sim_ros.usage.UsageError`) is one line on stderr,
+``crop-sim <command>: <what is wrong>``, and exit status 2; a traceback means a bug of ours.
 """
 
 from __future__ import annotations
@@ -10,6 +13,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+
+from crop_sim_ros.usage import EXIT_USAGE, UsageError
 
 # command -> (module, one-line help)
 COMMANDS = {
@@ -43,8 +48,12 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if getattr(args, "_missing", None):
         print(args._missing, file=sys.stderr)
-        return 2
-    return int(importlib.import_module(args._module).run(args) or 0)
+        return EXIT_USAGE
+    try:
+        return int(importlib.import_module(args._module).run(args) or 0)
+    except UsageError as error:
+        print(f"crop-sim {args.command}: {error}", file=sys.stderr)
+        return EXIT_USAGE
 
 
 if __name__ == "__main__":

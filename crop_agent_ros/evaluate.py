@@ -8,6 +8,10 @@ return on the season minus the policy's). Prints a table, writes ``evaluation.cs
 of the first season with the first seed (biomass, PAW, rain and irrigation by day).
 
     crop-sim evaluate --policies zero,constant10,best-constant,refill,ppo,oracle --seasons heldout --seeds 0..9
+
+Input is checked before any season runs: an unknown policy or scenario, a policy file that is missing,
+corrupt or made for other spaces, bad seeds (at most MAX_SEEDS) or an output path that is a file are one
+line on stderr and exit status 2.
 """
 
 from __future__ import annotations
@@ -20,16 +24,20 @@ from pathlib import Path
 
 import numpy as np
 
+from crop_sim_ros.usage import UsageError, user_input
+
 DEFAULT_POLICIES = "zero,constant10,best-constant,refill,ppo,oracle"
 # the hand-made baselines PPO must beat (margin<mm>, the PPO policy's own starting point, is reported apart)
 RULES = ("zero", "constant10", "best-constant", "refill")
+MAX_SEEDS = 10_000  # noise seeds of one evaluation (each runs every policy on every season)
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--policies", default=DEFAULT_POLICIES,
                         help=f"comma-separated policy names (default {DEFAULT_POLICIES}); also constant<mm>, "
                              "ppo:<path.zip>")
-    parser.add_argument("--seasons", default="heldout", help="scenario whose seasons to run (default heldout)")
+    parser.add_argument("--seasons", default="heldout",
+                        help="scenario whose seasons to run: a name or a YAML path (default heldout)")
     parser.add_argument("--seeds", default="0..9", help="observation-noise seeds: 'A..B' (inclusive) or 'a,b,c'")
     parser.add_argument("--ppo-path", default=None, help="policy file for 'ppo' (default: the shipped one)")
     parser.add_argument("--out", type=Path, default=Path("runs/evaluate"), help="output directory")
@@ -37,32 +45,62 @@ def add_arguments(parser) -> None:
 
 
 def parse_seeds(text: str) -> list[int]:
+    """'A..B' (inclusive, A <= B) or 'a,b,c': non-negative seeds, at most MAX_SEEDS; UsageError otherwise."""
     text = text.strip()
-    if ".." in text:
-        low, high = text.split("..", 1)
-        seeds = list(range(int(low), int(high) + 1))
-    else:
-        seeds = [int(s) for s in text.split(",") if s.strip()]
-    if not seeds:
-        raise ValueError(f"no seeds in {text!r}")
-    return seeds
+    try:
+        if ".." in text:
+            low, high = (int(part) for part in text.split("..", 1))
+            if low > high:
+                raise UsageError(f"--seeds: {text!r} runs backwards; write {high}..{low}")
+            count = high - low + 1
+            seeds = range(low, high + 1)
+        else:
+            seeds = [int(s) for s in text.split(",") if s.strip()]
+            count = len(seeds)
+    except ValueError as error:
+        if isinstance(error, UsageError):
+            raise
+        raise UsageError(f"--seeds: {text!r} is neither 'A..B' nor a comma-separated list of whole numbers") from None
+    if count == 0:
+        raise UsageError(f"--seeds: no seeds in {text!r}")
+    if count > MAX_SEEDS:
+        raise UsageError(f"--seeds: {count} seeds; at most {MAX_SEEDS}")
+    if min(seeds) < 0:
+        raise UsageError(f"--seeds: seeds are non-negative, got {min(seeds)}")
+    return list(seeds)
+
+
+def make_policies(names: list[str], ppo_path=None) -> dict:
+    """The policies of ``names`` (make_policy's names, and ``oracle``), built before any season runs;
+    UsageError names a policy that is unknown, or whose file is missing or not a policy for this task."""
+    from .policies import make_policy
+    from .policies.oracle import OraclePolicy
+    if not names:
+        raise UsageError("--policies: no policy named")
+    policies = {}
+    for name in names:
+        with user_input(f"--policies {name}"):
+            policies[name] = OraclePolicy() if name == "oracle" else make_policy(name, ppo_path=ppo_path)
+    return policies
 
 
 def evaluate(policy_names: list[str], scenario_name: str, seeds: list[int], ppo_path=None, record: bool = True):
     """Run every policy; returns (rows, episodes by policy, oracle results, contexts)."""
-    from .policies import make_policy
     from .policies.oracle import OraclePolicy
     from .policies.rollout import run_episodes, scenario_of, season_contexts
+    policies = make_policies(policy_names, ppo_path)
     scenario = scenario_of(scenario_name)
+    print(f"evaluating {', '.join(policy_names)} on '{scenario.name}' with noise seeds {seeds[0]}..{seeds[-1]} "
+          f"({len(seeds)} seeds)", file=sys.stderr)
     contexts = season_contexts(scenario)
     m = len(contexts)
     seasons = np.arange(m)
-    oracle = OraclePolicy()
+    oracle = policies.get("oracle") or OraclePolicy()
     oracle.begin_season(contexts)
     oracle_return = np.array([r.return_value for r in oracle.results])
     rows, episodes = [], {}
     for name in policy_names:
-        policy = oracle if name == "oracle" else make_policy(name, ppo_path=ppo_path)
+        policy = policies[name]
         started = time.perf_counter()
         runs = []
         for seed in seeds:
@@ -158,11 +196,13 @@ def plot_policy(name: str, episodes, context, path: Path) -> None:
 
 
 def run(args) -> int:
+    from crop_sim_ros.simulate import find_scenario, output_directory
     names = [n.strip() for n in args.policies.split(",") if n.strip()]
     seeds = parse_seeds(args.seeds)
-    print(f"evaluating {', '.join(names)} on '{args.seasons}' with noise seeds {seeds[0]}..{seeds[-1]} "
-          f"({len(seeds)} seeds)", file=sys.stderr)
-    rows, episodes, oracle_results, contexts = evaluate(names, args.seasons, seeds, args.ppo_path,
+    with user_input("--seasons"):
+        scenario = find_scenario(args.seasons)
+    out = output_directory(args.out)
+    rows, episodes, oracle_results, contexts = evaluate(names, scenario, seeds, args.ppo_path,
                                                         record=not args.no_plots)
     summary = summarize(rows)
     comparisons = {}
@@ -187,8 +227,6 @@ def run(args) -> int:
                     "refinement_gain_over_family": r.refinement_gain, "family": r.family_parameters,
                     "yield_t_ha": r.yield_t_ha, "irrigation_mm": r.water_mm, "evaluations": r.evaluations}
                    for c, r in zip(contexts, oracle_results)]
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     with open(out / "evaluation.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()

@@ -9,21 +9,37 @@ scenario ``benton-generated`` (no data file needed), seed 0. Both nodes run on a
 with discovery kept on this machine, so nothing else on the network sees them (``--domain-id`` to choose).
 On a ROS 2 machine the same job is ``ros2 launch crop_sim_ros farm.launch.py``.
 
-Exit status: 0 when every season was grown, 1 when a node failed (its output is printed).
+Exit status: 0 when every season was grown; 2 for a mistake in the input (a bad argument, an unknown
+scenario or policy, a policy file that is missing or not for this task: a node that cannot start says why
+in one line); 1 when a node failed later (its output is printed); 128 + the signal's number when stopped by
+SIGINT or SIGTERM (both nodes are stopped first, without a traceback).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
+import signal
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+from crop_sim_ros.usage import EXIT_USAGE, UsageError
+
 from .ros_process import NodeProcess, isolated_ros_env, pick_domain_id
 
 SUMMARY_PREFIX = "season summary: "
+MAX_SEASONS = 100_000  # the agent node's own bound of its ``seasons`` parameter
+# seconds the agent waits for any answer of the simulator, its start-up included (both nodes load for seconds)
+AGENT_TIMEOUT_S = 30.0
+# a log line of rclpy: "[FATAL] [1700000000.123] [crop_agent]: message"
+_LOG_LINE = re.compile(r"^\[(?P<level>[A-Z]+)\] \[[0-9.]+\] \[[^]]*\]: (?P<message>.*)$")
+
+
+class Interrupted(BaseException):
+    """SIGINT or SIGTERM while the farm runs (the number is the signal's)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,7 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--policy-file", default="", help="policy ppo: a Stable-Baselines3 PPO .zip "
                         "(default: the shipped crop_agent_ros/policies/ppo_benton.zip)")
     parser.add_argument("--constant-mm", type=float, default=10.0, help="policy constant: mm per day (default 10)")
-    parser.add_argument("--seasons", type=int, default=1, help="seasons to grow (default 1)")
+    parser.add_argument("--seasons", type=int, default=1, help=f"seasons to grow (default 1, at most {MAX_SEASONS})")
     parser.add_argument("--scenario", default="benton-generated", help="scenario name or YAML path "
                         "(default benton-generated, the embedded default)")
     parser.add_argument("--data-dir", default="", help="directory of the scenario's weather files")
@@ -45,7 +61,44 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-plot", action="store_true", help="do not draw the last season (PNG beside the log)")
 
 
+def _interrupt(signum, frame) -> None:
+    _set_signal_handlers(signal.SIG_IGN)  # one is enough: the nodes' shutdown must not be interrupted
+    raise Interrupted(signum)
+
+
+def _set_signal_handlers(handler) -> None:
+    for kind in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(kind, handler)
+
+
+def startup_failure(node: NodeProcess) -> str:
+    """Why a node that exited with status 2 could not start: its last FATAL or ERROR log line (else its last
+    line), without rclpy's prefix."""
+    lines = [line.strip() for line in node.output().splitlines() if line.strip()]
+    for line in reversed(lines):
+        match = _LOG_LINE.match(line)
+        if match and match["level"] in ("FATAL", "ERROR"):
+            return f"{node.name}: {match['message']}"
+    return f"{node.name}: {lines[-1] if lines else f'exited with status {node.poll()}'}"
+
+
 def run(args) -> int:
+    if not 1 <= args.seasons <= MAX_SEASONS:
+        raise UsageError(f"--seasons: {args.seasons} is not in 1..{MAX_SEASONS}")
+    if not args.timeout > 0:
+        raise UsageError(f"--timeout: {args.timeout} s is not positive")
+    if args.policy_file and not Path(args.policy_file).expanduser().is_file():
+        raise UsageError(f"--policy-file: {args.policy_file} is not a file")
+    _set_signal_handlers(_interrupt)
+    try:
+        return _grow(args)
+    except Interrupted as stop:
+        return 128 + stop.args[0]
+    finally:
+        _set_signal_handlers(signal.SIG_DFL)
+
+
+def _grow(args) -> int:
     env = isolated_ros_env(args.domain_id if args.domain_id is not None else pick_domain_id(salt=53))
     workdir = Path(tempfile.mkdtemp(prefix="crop_farm_"))
     log = Path(args.log).expanduser().resolve() if args.log else workdir / "season_log.csv"
@@ -53,34 +106,38 @@ def run(args) -> int:
     if args.data_dir:
         sim_args += ["-p", f"data_dir:={args.data_dir}"]
     agent_args = ["-p", f"policy:={args.policy}", "-p", "drive:=true", "-p", f"seasons:={args.seasons}",
-                  "-p", f"constant_mm:={args.constant_mm}", "-p", "seed:=-2"]
+                  "-p", f"constant_mm:={args.constant_mm}", "-p", "seed:=-2", "-p", f"timeout:={AGENT_TIMEOUT_S}"]
     if args.policy_file:
         agent_args += ["-p", f"policy_file:={Path(args.policy_file).expanduser().resolve()}"]
     started = time.monotonic()
-    sim = NodeProcess("crop_sim_ros.sim_node", ros_args=sim_args, env=env, name="sim_node",
-                      log_path=workdir / "sim_node.out")
-    agent = NodeProcess("crop_agent_ros.agent_node", ros_args=agent_args, env=env, name="agent_node",
-                        log_path=workdir / "agent_node.out")
+    sim = agent = None
     code = 0
     try:
+        sim = NodeProcess("crop_sim_ros.sim_node", ros_args=sim_args, env=env, name="sim_node",
+                          log_path=workdir / "sim_node.out")
+        agent = NodeProcess("crop_agent_ros.agent_node", ros_args=agent_args, env=env, name="agent_node",
+                            log_path=workdir / "agent_node.out")
         while agent.poll() is None:
             if sim.poll() is not None:
-                print(f"sim_node exited with status {sim.poll()}:\n{sim.output()}", file=sys.stderr)
-                code = 1
                 break
             if time.monotonic() - started > args.timeout:
                 print(f"timed out after {args.timeout:.0f} s", file=sys.stderr)
                 code = 1
                 break
             time.sleep(0.05)
-        if code == 0 and agent.poll() != 0:
-            print(f"agent_node exited with status {agent.poll()}:\n{agent.output()}", file=sys.stderr)
+        failed = next((node for node in (sim, agent) if node.poll() not in (None, 0)), None)
+        if code == 0 and failed is not None:
+            if failed.poll() == EXIT_USAGE:  # could not start: bad input, said in one line
+                raise UsageError(startup_failure(failed))
+            print(f"{failed.name} exited with status {failed.poll()}:\n{failed.output()}", file=sys.stderr)
             code = 1
-    except KeyboardInterrupt:
-        code = 130
     finally:
-        agent.stop()
-        sim_status = sim.stop()
+        _set_signal_handlers(signal.SIG_IGN)  # a signal must not leave a node running (each has its own session)
+        for node in (agent, sim):
+            if node is not None:
+                node.stop()
+        _set_signal_handlers(_interrupt)
+    sim_status = sim.poll()
     summaries = [json.loads(line[len(SUMMARY_PREFIX):]) for line in agent.output().splitlines()
                  if line.startswith(SUMMARY_PREFIX)]
     if summaries and not args.no_plot:
@@ -149,9 +206,10 @@ def plot_season_log(log: Path, png: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m crop_agent_ros.run_farm", description=__doc__.split("\n\n")[0])
-    add_arguments(parser)
-    return run(parser.parse_args(argv))
+    """``python -m crop_agent_ros.run_farm ...`` is ``crop-sim farm ...``."""
+    from .cli import main as crop_sim
+
+    return crop_sim(["farm", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

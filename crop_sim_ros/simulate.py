@@ -1,7 +1,10 @@
 """``crop-sim simulate``: grow one season of a scenario under fixed daily irrigation rates and summarise it.
 
-All rates run as one batched model call (one field per rate). Writes the daily series (CSV), a summary
-(JSON) and a plot (PNG) of biomass, canopy cover, plant-available water, rain and irrigation.
+All rates run as one batched model call (one field per rate, at most MAX_FIELDS). Writes the daily series
+(CSV), a summary (JSON) and a plot (PNG) of biomass, canopy cover, plant-available water, rain and irrigation.
+
+A mistake in the input (an unknown scenario, a broken weather file, a missing data directory, an output
+path that is a file, ...) is one line on stderr and exit status 2 (:mod:`crop_sim_ros.usage`).
 """
 
 from __future__ import annotations
@@ -9,14 +12,17 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 from pathlib import Path
 
 import numpy as np
 
 from .model import repeat_parameters, simulate_season
-from .task.scenario import get_scenario, scenario_names
+from .task.scenario import Scenario, get_scenario, load_scenario, scenario_names
+from .usage import UsageError, user_input
 
 KG_PER_T = 1000.0
+MAX_FIELDS = 1000  # irrigation rates of one run (one field each)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,27 +40,56 @@ def _rates(text: str) -> np.ndarray:
     try:
         rates = np.array([float(v) for v in text.split(",") if v.strip()])
     except ValueError:
-        raise SystemExit(f"--irrigation-mm: {text!r} is not a comma-separated list of numbers") from None
+        raise UsageError(f"--irrigation-mm: {text!r} is not a comma-separated list of numbers") from None
     if rates.size == 0 or not np.all(np.isfinite(rates)) or np.any(rates < 0) or np.any(rates > 100):
-        raise SystemExit(f"--irrigation-mm: every rate must be a number in [0, 100] mm/day, got {text!r}")
+        raise UsageError(f"--irrigation-mm: every rate must be a number in [0, 100] mm/day, got {text!r}")
+    if rates.size > MAX_FIELDS:
+        raise UsageError(f"--irrigation-mm: {rates.size} rates; at most {MAX_FIELDS} (one field each)")
     return rates
+
+
+def find_scenario(name_or_path: str, data_dir: str | Path | None = None) -> Scenario:
+    """A built-in scenario by name, or a scenario YAML file (a path: it ends in .yaml or .yml, or has a
+    directory in it), its weather files and crop names checked. Raises UnknownNameError, ValueError or OSError
+    (a missing file) naming what is wrong."""
+    name = name_or_path.strip()
+    if not (name.endswith((".yaml", ".yml")) or os.sep in name):
+        return get_scenario(name, data_dir)
+    scenario = load_scenario(Path(name).expanduser(), data_dir)
+    for season in scenario.weather.seasons:
+        scenario.season_path(season)
+    scenario.field_parameters()
+    return scenario
+
+
+def output_directory(path: str | Path) -> Path:
+    """``path`` as an output directory, created if needed; UsageError if it cannot be one."""
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out: {out} is a file, not a directory")
+    with user_input("--out"):
+        out.mkdir(parents=True, exist_ok=True)
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise UsageError(f"--out: cannot write in {out}")
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
     rates = _rates(args.irrigation_mm)
-    scenario = get_scenario(args.scenario, args.data_dir)
-    seasons = scenario.load_seasons()
+    if args.data_dir is not None and not Path(args.data_dir).is_dir():
+        raise UsageError(f"--data-dir: {args.data_dir} is not a directory")
+    with user_input("--scenario"):
+        scenario = find_scenario(args.scenario, args.data_dir)
+        seasons = scenario.load_seasons()
     if not 0 <= args.season < len(seasons):
-        raise SystemExit(f"--season: scenario {scenario.name!r} has seasons 0..{len(seasons) - 1}")
+        raise UsageError(f"--season: scenario {scenario.name!r} has seasons 0..{len(seasons) - 1}")
+    out = output_directory(args.out)
     weather = seasons[args.season]
     et0 = weather.et0_mm(scenario.et0_method)
     params = repeat_parameters(scenario.field_parameters(), rates.size)
     days = len(weather)
     result = simulate_season(params, weather.tmax_degc, weather.tmin_degc, weather.srad_mj_m2, weather.rain_mm,
                              et0, np.broadcast_to(rates, (days, rates.size)))
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-
     final = result.final_state
     # Water and yield up to the maturity day (or the whole series for a field that did not mature).
     end = np.where(final.mature, final.maturity_day + 1, days)

@@ -21,6 +21,8 @@ def test_simulate_embedded_default(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("rates", ["nan", "-1", "abc", "200"])
-def test_simulate_refuses_bad_rates(tmp_path, rates):
-    with pytest.raises(SystemExit, match="irrigation-mm"):
-        main(["simulate", "--irrigation-mm", rates, "--out", str(tmp_path)])
+def test_simulate_refuses_bad_rates(tmp_path, capsys, rates):
+    assert main(["simulate", "--irrigation-mm", rates, "--out", str(tmp_path / "out")]) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("crop-sim simulate: --irrigation-mm: ") and repr(rates) in line
+    assert not (tmp_path / "out").exists()

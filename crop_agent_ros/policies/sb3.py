@@ -29,6 +29,11 @@ senescence, (TT - (Tsum - I50B)) / I50B clipped to [-1, 1.5], with Russet Burban
 I50B = 400 degC d).
 
 Either way the policy is a function of the observation alone and returns mm in [0, 100].
+
+A policy file is checked when it loads (:class:`SB3Policy`): a file that is not a Stable-Baselines3 PPO zip,
+a config with an unknown action mode or feature set, or a network whose observation space is not the
+feature vector of its feature set (23 values for ``full``) or whose action space is not one value raises
+:class:`PolicyFileError`, before any action is asked of it.
 """
 
 from __future__ import annotations
@@ -140,6 +145,10 @@ def action_to_mm(action: np.ndarray, obs: np.ndarray, mode: str, margin_center_m
     raise ValueError(f"unknown action mode {mode!r}; known: {', '.join(ACTION_MODES)}")
 
 
+class PolicyFileError(ValueError):
+    """A policy file that cannot be this task's policy (the message names the file and why)."""
+
+
 def config_path_for(model_path: Path) -> Path:
     return Path(model_path).with_suffix(".json")
 
@@ -153,12 +162,37 @@ class SB3Policy(BasePolicy):
         if not self.path.exists():
             raise FileNotFoundError(f"policy file {self.path} does not exist (train one with `crop-sim train`)")
         cfg_file = config_path_for(self.path)
-        self.config = json.loads(cfg_file.read_text()) if cfg_file.exists() else {}
-        self.action_mode = self.config.get("action_mode", "mm")
-        self.feature_set = self.config.get("feature_set", "full")
-        self.mapping = {k: float(v) for k, v in self.config.get("action_mapping", {}).items()}
-        self.model = PPO.load(str(self.path), device=device)
+        try:
+            self.config = json.loads(cfg_file.read_text()) if cfg_file.exists() else {}
+            self.action_mode = self.config.get("action_mode", "mm")
+            self.feature_set = self.config.get("feature_set", "full")
+            self.mapping = {k: float(v) for k, v in self.config.get("action_mapping", {}).items()}
+        except (ValueError, TypeError, AttributeError) as error:
+            raise PolicyFileError(f"policy config {cfg_file}: {error}") from None
+        if self.action_mode not in ACTION_MODES or self.feature_set not in FEATURE_SETS:
+            raise PolicyFileError(f"policy config {cfg_file}: action_mode {self.action_mode!r} / feature_set "
+                                  f"{self.feature_set!r} not among {ACTION_MODES} / {tuple(FEATURE_SETS)}")
+        try:
+            self.model = PPO.load(str(self.path), device=device)
+        except Exception as error:  # noqa: BLE001 - a foreign file fails anywhere in zip, pickle or torch
+            raise PolicyFileError(f"policy file {self.path} is not a Stable-Baselines3 PPO policy: "
+                                  f"{type(error).__name__}: {error}") from None
+        self._check_spaces()
         self.name = name
+
+    def _check_spaces(self) -> None:
+        """The network must take this feature set's vector and give one action: refuse it at load, not at the
+        first action (where SB3 fails with "Unexpected observation shape" in the middle of a season)."""
+        from gymnasium import spaces
+        observation, action = self.model.observation_space, self.model.action_space
+        features_expected = (FEATURE_SETS[self.feature_set],)
+        if not isinstance(observation, spaces.Box) or observation.shape != features_expected:
+            raise PolicyFileError(
+                f"policy file {self.path}: its network observes {_describe(observation)}, but the task's "
+                f"{self.feature_set!r} features are {features_expected[0]} values (train it with `crop-sim train`)")
+        if not isinstance(action, spaces.Box) or action.shape != (1,):
+            raise PolicyFileError(f"policy file {self.path}: its network acts with {_describe(action)}, but the task's "
+                                  "action is one value (the irrigation of the day)")
 
     def _act_batch(self, obs):
         action, _ = self.model.predict(features(obs, self.feature_set), deterministic=True)
@@ -167,3 +201,8 @@ class SB3Policy(BasePolicy):
     def describe(self):
         return {"name": self.name, "path": str(self.path), "action_mode": self.action_mode,
                 "feature_set": self.feature_set}
+
+
+def _describe(space) -> str:
+    shape = getattr(space, "shape", None)
+    return f"{type(space).__name__} of shape {shape}" if shape is not None else type(space).__name__

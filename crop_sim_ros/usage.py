@@ -1,0 +1,35 @@
+"""Mistakes in what a user gives a command (a value, a file, a name): one line on stderr, exit status 2.
+
+A command raises :class:`UsageError` for such a mistake; ``crop-sim`` prints ``crop-sim <command>: <message>``
+and exits with EXIT_USAGE, without a traceback. Tracebacks are kept for our own bugs, so only the code that
+reads the user's input converts its errors, with :func:`user_input`:
+
+    with user_input("--scenario"):
+        scenario = load_scenario(path)     # ValueError, KeyError (an unknown name), OSError -> UsageError
+"""
+
+from __future__ import annotations
+
+from contextlib import contextmanager
+
+EXIT_USAGE = 2  # as argparse and ``crop-sim validate``
+
+
+class UsageError(ValueError):
+    """A mistake in a command's input; the message names the argument or file and what is wrong with it."""
+
+
+def one_line(error: BaseException) -> str:
+    """The message of ``error`` on one line (a YAML error spans several: its lines joined with '; ')."""
+    return "; ".join(line.strip() for line in str(error).splitlines() if line.strip()) or type(error).__name__
+
+
+@contextmanager
+def user_input(what: str, errors: tuple[type[BaseException], ...] = (ValueError, KeyError, OSError)):
+    """Turn ``errors`` raised while reading the user's ``what`` into a UsageError naming it."""
+    try:
+        yield
+    except UsageError:
+        raise
+    except errors as error:
+        raise UsageError(f"{what}: {one_line(error)}") from None
