@@ -210,3 +210,14 @@ def test_every_family_scenario_loads_and_steps():
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))
         assert obs.shape == (4, 29) and np.all(np.isfinite(obs)) and np.all(rewards < 0)
+
+
+@pytest.mark.parametrize("env_id", ["SimpleIrrigation-Quota-v0", "SimpleIrrigation-Sensing-v0"])
+def test_family_env_ids_pass_the_gymnasium_and_sb3_checkers(env_id):
+    import gymnasium as gym
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+    env = gym.make(env_id)
+    assert env.observation_space.shape == (29,)
+    check_env(env.unwrapped, skip_render_check=True)
+    sb3_check_env(env.unwrapped, warn=False)

@@ -11,7 +11,16 @@ SimpleIrrigation-Generated-v0           benton-generated      generated Benton C
 SimpleIrrigation-Benton2000-v0          benton-2000           AgWeatherNet Benton E., 2000 (the paper's)
 SimpleIrrigation-Paterson1992-v0 .. 95  paterson-1992 .. 1995 DSSAT WAPA9201..9501.WTH (held out)
 SimpleIrrigation-HeldOut-v0             heldout               the five real seasons
+SimpleIrrigation-Money-v0               benton-money          family: net return USD/ha (29 values)
+SimpleIrrigation-Quota-v0               benton-quota          family: + seasonal quota, pivot 8 mm/d
+SimpleIrrigation-Capacity-v0            benton-capacity       family: irrigation capacity 4.5 mm/d
+SimpleIrrigation-Sensing-v0             benton-sensing        family: quota + noisy PAW with dropouts
+SimpleIrrigation-Blind-v0               benton-blind          family: quota + no PAW sensor
+SimpleIrrigation-Climates-v0            climates-quota        family: quota, Benton + Gainesville weather
 ======================================= ===================== ===========================================
+
+The family tasks (money, quota, capacity, sensing, climates) are documented in :mod:`crop_sim_ros.task.layout`
+(their 29-value observation) and :mod:`crop_sim_ros.task.terms` (their terms and defaults).
 
 Imports neither rclpy nor torch (the Stable-Baselines3 adapter is :mod:`crop_sim_ros.task.sb3_vec`).
 """
@@ -30,6 +39,12 @@ ENV_IDS = {
     "SimpleIrrigation-Paterson1994-v0": "paterson-1994",
     "SimpleIrrigation-Paterson1995-v0": "paterson-1995",
     "SimpleIrrigation-HeldOut-v0": "heldout",
+    "SimpleIrrigation-Money-v0": "benton-money",
+    "SimpleIrrigation-Quota-v0": "benton-quota",
+    "SimpleIrrigation-Capacity-v0": "benton-capacity",
+    "SimpleIrrigation-Sensing-v0": "benton-sensing",
+    "SimpleIrrigation-Blind-v0": "benton-blind",
+    "SimpleIrrigation-Climates-v0": "climates-quota",
 }
 
 for _env_id, _scenario in ENV_IDS.items():
