@@ -106,7 +106,9 @@ def test_missing_rule_file_is_tuned_on_training_seasons_and_written(evaluation, 
     path = rule_dir / f"family_{TASK}.json"
     assert result["rule"] == {**result["rule"], "file": str(path), "tuned_now": True, "tuned_on_seasons": [0, 1, 2, 3]}
     tuned = json.loads(path.read_text())
-    assert tuned["scenario"] == TASK and tuned["seasons"] == [0, 3]
+    assert tuned["scenario"] == TASK and tuned["seasons"] == [0, 1, 2, 3]
+    assert {k: v for k, v in result["rule"].items() if k in tuned["parameters"]} == {
+        k: (np.inf if v is None else v) for k, v in tuned["parameters"].items()}
     assert "(tuned by this run)" in (out / "table.md").read_text()
 
 
@@ -278,12 +280,6 @@ def test_evaluation_sets_carry_the_task_terms_to_other_weather():
                                           "maricopa-real"]
     assert climates[2].scenario.weather.generator == "gainesville" and "held-out climate" in climates[3].role
     assert climates[2].scenario.sowing_date == get_scenario("gainesville-generated").sowing_date
-
-
-def test_training_seasons_of_a_mixture_come_from_every_part():
-    from crop_sim_ros.task.scenario import get_scenario
-    assert et.training_seasons(get_scenario(TASK), 5).tolist() == [0, 1, 2, 3, 4]
-    assert et.training_seasons(get_scenario("climates-quota"), 4).tolist() == [0, 1, 1000, 1001]
 
 
 def test_resample_counts_draw_with_replacement():

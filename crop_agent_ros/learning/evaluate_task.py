@@ -101,9 +101,10 @@ def add_task_arguments(parser) -> None:
                              "evaluated policy instead")
     parser.add_argument("--curves", action=argparse.BooleanOptionalAction, default=True,
                         help="learning curves from every checkpoint of each run on heldout-real")
-    parser.add_argument("--tune-seasons", type=int, default=200,
-                        help="if the task's tuned rule file is missing: generated training seasons to tune on")
-    parser.add_argument("--tune-candidates", type=int, default=192)
+    parser.add_argument("--tune-seasons", type=int, default=150,
+                        help="if the task's tuned rule file is missing: tune it (as crop-sim tune-rule) on training "
+                             "seasons 0..N-1 (of each part of a mixture)")
+    parser.add_argument("--tune-candidates", type=int, default=128)
     parser.add_argument("--tune-rounds", type=int, default=4)
 
 
@@ -192,8 +193,11 @@ class AgentRun:
         path = self.directory / "early_model.zip"
         return path if path.is_file() else None
 
-    def timesteps_of(self, path: Path) -> int:
-        return next(steps for steps, p in self.checkpoints if p == path)
+    @staticmethod
+    def timesteps_of(path: Path) -> int:
+        """The environment steps a saved policy had trained for (-1 if its .json does not say)."""
+        steps = json.loads(path.with_suffix(".json").read_text(encoding="utf-8")).get("timesteps_at_save")
+        return steps if isinstance(steps, int) else -1
 
 
 def _read_config(path: Path, what: str) -> dict:
@@ -257,15 +261,6 @@ def load_agent(path: Path, name: str):
         return LearnedPolicy(path, name=name)
 
 
-def training_seasons(task, count: int) -> np.ndarray:
-    """``count`` generated training seasons of ``task``: the first of its pool, or of each mixture part."""
-    sources = generator_sources(task)
-    per_part = -(-count // len(sources))
-    offsets = np.cumsum([0] + [s.n_seasons for s in sources[:-1]])
-    picked = np.concatenate([offset + np.arange(min(per_part, s.n_seasons)) for offset, s in zip(offsets, sources)])
-    return picked[:count]
-
-
 def the_rule(task, args, log):
     """The tuned rule of ``task`` and where it came from; tuned on training seasons and written if missing."""
     from ..policies import family_tuning
@@ -273,9 +268,11 @@ def the_rule(task, args, log):
     if path.is_file():
         with user_input(f"tuned rule {path}", (ValueError, KeyError, TypeError, OSError)):
             return family_tuning.tuned_rule(task.name), {"file": str(path), "tuned_now": False}
-    seasons = training_seasons(task, args.tune_seasons)
+    seasons = family_tuning.training_seasons(task, 0, args.tune_seasons - 1)
     log(f"{path} is missing: tuning the rule now on {len(seasons)} generated training seasons "
-        f"({args.tune_candidates} candidates, {args.tune_rounds} rounds) and writing it")
+        f"({args.tune_candidates} candidates, {args.tune_rounds} rounds: as `crop-sim tune-rule --task {task.name} "
+        f"--seasons 0..{args.tune_seasons - 1} --candidates {args.tune_candidates} --rounds {args.tune_rounds}`) "
+        "and writing it")
     result = family_tuning.tune_rule(task, seasons, seed=0, candidates=args.tune_candidates,
                                      rounds=args.tune_rounds, log=log)
     family_tuning.write_tuned(task.name, result)
@@ -455,8 +452,8 @@ def _check_arguments(args) -> None:
     checks = (("--noise-seeds", args.noise_seeds, 1, MAX_NOISE_SEEDS), ("--bootstrap", args.bootstrap, 100, MAX_RESAMPLES),
               ("--far-seasons", args.far_seasons, 1, 10_000), ("--far-seed", args.far_seed, 0, 2**32 - 1),
               ("--terms-seed", args.terms_seed, 0, 2**32 - 1), ("--bootstrap-seed", args.bootstrap_seed, 0, 2**32 - 1),
-              ("--tune-seasons", args.tune_seasons, 1, 10_000), ("--tune-candidates", args.tune_candidates, 2, 100_000),
-              ("--tune-rounds", args.tune_rounds, 0, 100))
+              ("--tune-seasons", args.tune_seasons, 1, 1_000), ("--tune-candidates", args.tune_candidates, 1, 10_000),
+              ("--tune-rounds", args.tune_rounds, 0, 50))
     for name, value, low, high in checks:
         if not low <= value <= high:
             raise UsageError(f"{name}: {value} is not in {low}..{high}")
@@ -504,6 +501,7 @@ def _versions() -> dict:
 def run_task(args) -> dict:
     """Run the protocol of ``args.task`` (see the module docstring); writes the outputs and returns the
     ``table.json`` content."""
+    from crop_sim_ros.task import core
     started = time.perf_counter()
     log = _log
     _check_arguments(args)
@@ -511,7 +509,8 @@ def run_task(args) -> dict:
     out = Path(args.out) if getattr(args, "out", None) else Path("runs") / f"eval-{task.name}"
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out: {out} exists and is not a directory")
-    sets = _chosen_sets(evaluation_sets(task, args.far_seasons, args.far_seed), args.sets)
+    with user_input("--far-seasons", (ValueError,)):
+        sets = _chosen_sets(evaluation_sets(task, args.far_seasons, args.far_seed), args.sets)
     groups = agent_runs(args.agents, task.name)
     if args.oracle:
         try:
@@ -566,7 +565,6 @@ def run_task(args) -> dict:
         rows.extend(set_rows)
         if evaluation_set.name == HELD_OUT_REAL:
             curve_inputs = (evaluation_set, terms, reference)
-        from crop_sim_ros.task import core
         table = core.scenario_table(evaluation_set.scenario)
         report_sets.append({
             "name": evaluation_set.name, "role": evaluation_set.role, "scenario": evaluation_set.scenario.name,
@@ -632,7 +630,7 @@ def _log(message: str) -> None:
 # --- outputs --------------------------------------------------------------------------------------------
 
 def write_outputs(out: Path, result: dict, rows: list[dict], curves: list[dict]) -> None:
-    (out / "table.json").write_text(json.dumps(result, indent=1, default=_json_default) + "\n", encoding="utf-8")
+    (out / "table.json").write_text(json.dumps(_plain(result), indent=1, allow_nan=False) + "\n", encoding="utf-8")
     with open(out / "table.csv", "w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
         writer.writeheader()
@@ -649,11 +647,21 @@ def write_outputs(out: Path, result: dict, rows: list[dict], curves: list[dict])
         plot_learning_curves(out / "learning_curves.png", curves, rule_regret, result)
 
 
-def _json_default(value):
-    if isinstance(value, (np.floating, np.integer, np.bool_)):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
+def _plain(value):
+    """``value`` as strict JSON: numpy scalars and arrays as numbers and lists, NaN and infinities as null
+    (an undefined ratio; a rule parameter that never acts), paths as strings."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (np.bool_, bool)):
+        return bool(value)
+    if isinstance(value, (np.integer, int)):
+        return int(value)
+    if isinstance(value, (np.floating, float)):
+        return float(value) if np.isfinite(value) else None
+    if value is None or isinstance(value, str):
+        return value
     return str(value)
 
 
