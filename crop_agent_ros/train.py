@@ -8,10 +8,13 @@ with potential-based shaping by the crop's yield so far (``--reward-shaping``; e
 true reward). Every ``--eval-freq`` steps the deterministic policy runs on (a) fresh generated validation
 seasons (a generator seed the training pool does not use; ``best_validation_model.zip`` keeps the best) and
 (b) the held-out real seasons, whose regret against the hindsight oracle is only reported, never used to
-choose anything. The shaping reads each field's true biomass from the batched environment's state (the
+choose anything (so the oracle is planned after training, and the progress lines show the held-out return
+minus the refill rule's; the learning curve has the regrets). Before training starts, train prints how long
+after launch that was, and the wall and CPU time of each part of the start-up. The shaping reads each field's true biomass from the batched environment's state (the
 SB3 adapter does not pass it in ``infos``). Writes to ``--out`` (default ``runs/<name>``): ``model.zip`` with ``model.json`` (the
 policy's feature and action settings, read by the loader), ``learning_curve.csv`` and ``.png``, and
-``config.json`` (seed, scenario, hyper-parameters, package versions, wall time). ``--ship`` also copies the
+``config.json`` (seed, scenario, hyper-parameters, package versions, the steps that ran (whole rollouts:
+at least ``--timesteps``), training, evaluation and start-up times). ``--ship`` also copies the
 policy to ``crop_agent_ros/policies/ppo_benton.zip`` (+ ``.json``).
 """
 
@@ -19,6 +22,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 import platform
 import shutil
 import sys
@@ -141,6 +145,14 @@ def validation_scenario(scenario, n_seasons: int, seed: int):
                    weather=replace(scenario.weather, seed=scenario.weather.seed + 10_007 + seed, n_seasons=n_seasons))
 
 
+def seconds_since_launch() -> float:
+    """Seconds since this process started (its start time in /proc, 10 ms resolution): the interpreter's
+    start-up and imports count too."""
+    after_name = Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()
+    start_s = int(after_name[19]) / os.sysconf("SC_CLK_TCK")  # field 22, starttime, in clock ticks since boot
+    return float(Path("/proc/uptime").read_text().split()[0]) - start_s
+
+
 def package_versions() -> dict:
     import gymnasium
     import stable_baselines3
@@ -186,6 +198,16 @@ def train(args) -> dict:
     from .policies.sb3 import FEATURE_SETS, FEATURE_VERSION
 
     torch.set_num_threads(1)
+    # wall and CPU seconds of each part before training (a busy machine stretches wall time, not CPU time)
+    startup = {"imports": (seconds_since_launch(), time.process_time())}
+    mark = (time.perf_counter(), time.process_time())
+
+    def phase(name: str) -> None:
+        nonlocal mark
+        now = (time.perf_counter(), time.process_time())
+        startup[name] = (now[0] - mark[0], now[1] - mark[1])
+        mark = now
+
     scenario = scenario_of(args.scenario)
     if scenario.name in HELD_OUT or scenario.weather.kind != "generator":
         raise SystemExit(f"crop-sim train: refusing to train on {scenario.name!r}: training uses generated "
@@ -202,9 +224,6 @@ def train(args) -> dict:
     # evaluation sets: held-out real seasons (reported only) and fresh generated validation seasons
     heldout = scenario_of(args.eval_scenario)
     heldout_contexts = season_contexts(heldout)
-    oracle = OraclePolicy()
-    oracle.begin_season(heldout_contexts)
-    heldout_oracle = np.array([r.return_value for r in oracle.results])
     validation = validation_scenario(scenario, args.validation_seasons, args.seed)
     eval_seeds = list(range(1000, 1000 + args.eval_seeds))
     refill = tuned_refill_policy()
@@ -218,9 +237,11 @@ def train(args) -> dict:
 
     r_ref, n_ref, _ = score(refill, heldout, heldout_contexts)
     v_ref, _, _ = score(refill, validation)
+    # the regrets need the held-out oracle, which chooses nothing: it is planned after training (see below)
     baseline = {"heldout_refill_return": float(r_ref.mean()), "heldout_refill_normalized_return": float(n_ref.mean()),
-                "heldout_refill_regret": float((heldout_oracle - r_ref).mean()),
-                "validation_refill_return": float(v_ref.mean())}
+                "heldout_refill_regret": float("nan"), "validation_refill_return": float(v_ref.mean())}
+    heldout_returns: list[np.ndarray] = []  # per evaluation, per held-out season
+    phase("refill baselines")
 
     params = scenario.field_parameters()
     mapping = {"margin_center_mm": args.margin_center, "margin_span_mm": args.margin_span}
@@ -238,12 +259,20 @@ def train(args) -> dict:
     rows: list[dict] = []
     started = time.perf_counter()
     best = {"validation_return": -np.inf, "timesteps": 0}
+    evaluation_s = [0.0]
 
     class Curve(BaseCallback):
         def __init__(self):
             super().__init__()
             self.next_eval = 0
             self.episode_returns: list[float] = []
+
+        def _on_training_start(self) -> None:
+            phase("environments and model")
+            parts = ", ".join(f"{name} {wall:.1f} s (CPU {cpu:.1f} s)" for name, (wall, cpu) in startup.items())
+            startup["training started"] = (seconds_since_launch(), time.process_time())
+            print(f"training started {startup['training started'][0]:.1f} s after launch, after "
+                  f"{startup['training started'][1]:.1f} s of CPU: {parts}", file=sys.stderr, flush=True)
 
         def _on_step(self) -> bool:
             for info in self.locals.get("infos", []):
@@ -259,6 +288,7 @@ def train(args) -> dict:
                 self.evaluate()
 
         def evaluate(self):
+            evaluation_started = time.perf_counter()
             policy = PolicyOfModel(self.model, args.action_mode, args.feature_set, mapping)
             ret, norm, water = score(policy, heldout, heldout_contexts)
             vret, vnorm, _ = score(policy, validation)
@@ -268,20 +298,30 @@ def train(args) -> dict:
                    "validation_return": float(vret.mean()), "validation_normalized_return": float(vnorm.mean()),
                    "validation_minus_refill": float(vret.mean() - v_ref.mean()),
                    "heldout_return": float(ret.mean()), "heldout_normalized_return": float(norm.mean()),
-                   "heldout_regret": float((heldout_oracle - ret).mean()), "heldout_irrigation_mm": water,
-                   **baseline}
+                   "heldout_regret": float("nan"), "heldout_irrigation_mm": water, **baseline}
             rows.append(row)
+            heldout_returns.append(ret)
             if vret.mean() > best["validation_return"]:
                 best.update(validation_return=float(vret.mean()), timesteps=int(self.num_timesteps))
                 self.model.save(out / "best_validation_model.zip")
             print(f"[{row['timesteps']:>9}] {row['wall_s']:>7.1f} s  validation - refill "
-                  f"{row['validation_minus_refill']:+.4f}  held-out regret {row['heldout_regret']:.4f} "
-                  f"(refill {baseline['heldout_refill_regret']:.4f})", file=sys.stderr, flush=True)
+                  f"{row['validation_minus_refill']:+.4f}  held-out - refill {ret.mean() - r_ref.mean():+.4f} t/ha",
+                  file=sys.stderr, flush=True)
+            evaluation_s[0] += time.perf_counter() - evaluation_started
 
     callback = Curve()
     model.learn(total_timesteps=args.timesteps, callback=callback, progress_bar=not args.no_progress)
     wall = time.perf_counter() - started
+    steps_run = int(model.num_timesteps)  # whole rollouts of n_steps x n_envs: at least --timesteps
     model.save(out / "model.zip")
+    oracle_started = time.perf_counter()
+    oracle = OraclePolicy()
+    oracle.begin_season(heldout_contexts)
+    heldout_oracle = np.array([r.return_value for r in oracle.results])
+    oracle_s = time.perf_counter() - oracle_started
+    for row, ret in zip(rows, heldout_returns):
+        row.update(heldout_regret=float((heldout_oracle - ret).mean()),
+                   heldout_refill_regret=float((heldout_oracle - r_ref).mean()))
     policy_config = {"action_mode": args.action_mode, "feature_set": args.feature_set, "action_mapping": mapping,
                      "feature_version": FEATURE_VERSION, "n_features": FEATURE_SETS[args.feature_set],
                      "trained_on": scenario.name, "seed": args.seed, "timesteps": args.timesteps,
@@ -307,7 +347,12 @@ def train(args) -> dict:
               "reward": ("evaluation: the task's true reward (C_I * mm daily + yield t/ha at harvest); training: "
                          + ("the true reward" if args.reward_shaping == "none" else
                             "plus potential-based shaping gamma*Phi(s') - Phi(s), Phi = HI * true biomass t/ha")),
-              "policy": policy_config, "wall_time_s": round(wall, 1), "torch_threads": torch.get_num_threads(),
+              "policy": policy_config, "timesteps_run": steps_run, "wall_time_s": round(wall, 1),
+              "training_time_s": round(wall - evaluation_s[0], 1), "evaluation_time_s": round(evaluation_s[0], 1),
+              "heldout_oracle_time_s": round(oracle_s, 1),
+              "evaluations": len(rows),
+              "startup_wall_cpu_s": {name: [round(wall, 2), round(cpu, 2)] for name, (wall, cpu) in startup.items()},
+              "torch_threads": torch.get_num_threads(),
               "best_validation": best, "final": rows[-1], "versions": package_versions()}
     (out / "config.json").write_text(json.dumps(config, indent=2, default=str) + "\n")
     if args.ship:
@@ -315,7 +360,11 @@ def train(args) -> dict:
         shutil.copyfile(out / "model.zip", SHIPPED_PPO)
         (SHIPPED_PPO.with_suffix(".json")).write_text(json.dumps({**policy_config, "training": config}, indent=2,
                                                                  default=str) + "\n")
-    print(f"trained {args.timesteps} steps in {wall:.0f} s; wrote {out}", file=sys.stderr)
+    print(f"trained {steps_run} steps ({args.timesteps} asked; PPO runs whole rollouts of {args.n_steps} x "
+          f"{args.n_envs} steps) in {wall - evaluation_s[0]:.1f} s of training, plus {evaluation_s[0]:.1f} s in "
+          f"{len(rows)} evaluations and {oracle_s:.1f} s planning the held-out oracle; training started "
+          f"{startup['training started'][0]:.1f} s after launch; held-out regret {rows[-1]['heldout_regret']:.4f} "
+          f"(refill {rows[-1]['heldout_refill_regret']:.4f}) t/ha; wrote {out}", file=sys.stderr)
     return config
 
 
