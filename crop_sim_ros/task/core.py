@@ -61,7 +61,7 @@ from ..weather import WeatherSeries
 from .layout import (BIOMASS, DAY, FORECAST, PAPER, PAW, PAW_OBSERVED, QUOTA_OBSERVED_CAP_MM, THERMAL_TIME, TODAY,
                      WEATHER_NAMES, ObservationLayout)
 from .scenario import ObservationNoise, Scenario
-from .terms import Range
+from .terms import FarmLimits, Range
 
 KG_PER_T = 1000.0
 # The paper's layout (the family's extended layout appends to it: see crop_sim_ros.task.layout).
@@ -153,9 +153,16 @@ def _frozen_table(weather: np.ndarray, et0_mm: np.ndarray, n_days: np.ndarray, s
                        filled)
 
 
-@functools.lru_cache(maxsize=16)
 def scenario_table(scenario: Scenario) -> SeasonTable:
-    """The table of every season of ``scenario`` (built once per process and scenario: resets stay cheap)."""
+    """The table of every season of ``scenario`` (built once per process and weather: resets stay cheap, and
+    the family tasks that share a weather source share one table)."""
+    return _weather_table(replace(scenario, name="weather", description="", noise=ObservationNoise(), economics=None,
+                                  limits=FarmLimits(), irrigation_cost_per_mm=-1.25e-4, max_irrigation_mm=100.0))
+
+
+@functools.lru_cache(maxsize=16)
+def _weather_table(scenario: Scenario) -> SeasonTable:
+    """The table of ``scenario``, whose fields that do not shape the table (name, noise, terms) are neutral."""
     return season_table(scenario, scenario.load_seasons())
 
 
