@@ -15,207 +15,118 @@ Two ways of working:
 - drive (``drive: true``): the node runs ``seasons`` seasons itself: reset, then every day publish the
   command, wait for the simulator's acknowledgement, call ``<sim_node>/step``, until the season ends; it
   prints a summary of each season (yield t/ha, irrigation mm, return) as a line
-  ``season summary: {json}`` and exits (status 0; 1 if the simulator failed).
+  ``season summary: {json}`` and exits (status 0; 1 if the simulator failed or did not answer within
+  ``timeout`` seconds, the start included). The simulator's ``seed`` and ``weather_season`` parameters are
+  set for each reset only and restored after it (:class:`~crop_agent_ros.sim_client.SimClient`).
 
 Policies (parameter ``policy``, built by :func:`crop_agent_ros.policies.make_policy`): ``zero``; ``constant``
 (``constant_mm`` mm/day); ``best-constant`` and ``refill`` (the rules tuned on generated seasons); ``ppo`` (a
 Stable-Baselines3 PPO policy file, ``policy_file``, by default the shipped
-``crop_agent_ros/policies/ppo_benton.zip``).
+``crop_agent_ros/policies/ppo_benton.zip``, checked against the task's spaces when it loads).
+
+Exit status: 0 when done, and on SIGINT or SIGTERM whenever it lands (the node stops where it is, without a
+traceback; a second signal during the shutdown is ignored); 2 when it cannot start (bad parameters, an
+unknown policy, a policy file that is missing or not for this task: one line); 1 when the simulator failed.
+``agent_node --help`` prints the parameters and exits.
 """
 
 from __future__ import annotations
 
-import json
-import math
+import signal
 import sys
 
-import rclpy
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.node import Node
-from diagnostic_msgs.msg import DiagnosticStatus
-from std_msgs.msg import Float32MultiArray, Float64MultiArray
-
-from crop_sim_ros import ros_interface as ri
-
-from .sim_client import UNCHANGED, SimClient, SimError
-
-POLICIES = ("zero", "constant", "best-constant", "refill", "ppo")
-NODE_NAME = "crop_agent"
+class StopSignal(BaseException):
+    """SIGINT or SIGTERM arrived: stop where we are and exit 0. A BaseException, so that no ``except
+    Exception`` on the way (ours or a library's) takes it for an error."""
 
 
-def _descriptor(kind, description, low=None, high=None, constraints=""):
-    d = ParameterDescriptor(type=kind, description=description, additional_constraints=constraints)
-    if kind == ParameterType.PARAMETER_DOUBLE and low is not None:
-        d.floating_point_range = [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
-    if kind == ParameterType.PARAMETER_INTEGER and low is not None:
-        d.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]
-    return d
+_stopped_by: str | None = None  # the signal that stopped the node, once one has
 
 
-S, D, I, B = (ParameterType.PARAMETER_STRING, ParameterType.PARAMETER_DOUBLE, ParameterType.PARAMETER_INTEGER,
-              ParameterType.PARAMETER_BOOL)
-PARAMETERS = {
-    "sim_node": ("/" + ri.NODE_NAME, _descriptor(S, "fully qualified name of the simulator node")),
-    "policy": ("refill", _descriptor(S, "irrigation policy", constraints=" | ".join(POLICIES))),
-    "policy_file": ("", _descriptor(S, "policy ppo: Stable-Baselines3 PPO .zip ('' = the shipped ppo_benton.zip)")),
-    "constant_mm": (10.0, _descriptor(D, "policy constant: irrigation per day, mm", 0.0, 100.0)),
-    "drive": (False, _descriptor(B, "run the seasons itself (reset, command, step ...) and exit")),
-    "seasons": (1, _descriptor(I, "drive: number of seasons", 1, 100000)),
-    "seed": (-2, _descriptor(I, "drive: seed of the first season (later seasons continue the stream); -2 = the "
-                                "simulator's own seed parameter, -1 = unseeded", -2, 2**31 - 1)),
-    "timeout": (10.0, _descriptor(D, "drive: seconds to wait for any one answer of the simulator", 0.1, 3600.0)),
-}
+def _stop_on_signal(signum, frame) -> None:
+    global _stopped_by
+    # The first signal stops the node; a later one (Ctrl-C to a process group after a launcher's own SIGINT, a
+    # second SIGTERM) would otherwise interrupt the clean-up itself: ignore them from now on.
+    for kind in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(kind, signal.SIG_IGN)
+    _stopped_by = signal.Signals(signum).name
+    raise StopSignal(_stopped_by)
 
 
-def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.0):
-    """The policy named ``kind`` from :mod:`crop_agent_ros.policies` (ValueError for an unknown name,
-    FileNotFoundError for a missing policy file)."""
-    from .policies import ConstantPolicy, make_policy  # noqa: PLC0415
+def usage() -> str:
+    """``agent_node --help``: how to run it and every parameter with its default."""
+    from .agent import PARAMETERS
 
-    if kind not in POLICIES:
-        raise ValueError(f"unknown policy {kind!r}; known: {', '.join(POLICIES)}")
-    if kind == "constant":
-        return ConstantPolicy(constant_mm)
-    if kind == "ppo":
-        return make_policy("ppo", ppo_path=policy_file or None)
-    return make_policy(kind)
-
-
-class AgentNode(Node):
-    """See the module docstring."""
-
-    def __init__(self, node_name: str = NODE_NAME, **kwargs):
-        super().__init__(node_name, **kwargs)
-        try:
-            self._setup()
-        except BaseException:
-            self.destroy_node()  # a half-built node must not outlive the context (a hang at exit)
-            raise
-
-    def _setup(self) -> None:
-        for name, (default, descriptor) in PARAMETERS.items():
-            self.declare_parameter(name, default, descriptor)
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
-        self.sim = p["sim_node"] if p["sim_node"].startswith("/") else "/" + p["sim_node"]
-        self.policy = make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"])
-        self.drive_mode = bool(p["drive"])
-        self.commands_sent = 0
-        if not self.drive_mode:
-            self.policy.reset(None)
-            self._pending: tuple[int, float] | None = None  # today's command until the simulator accepts it
-            self._command = self.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_TOPIC}",
-                                                  ri.COMMAND_QOS)
-            self.create_subscription(Float32MultiArray, f"{self.sim}/{ri.OBSERVATION_TOPIC}", self._on_observation,
-                                     ri.LATCHED_READER_QOS)
-            self.create_subscription(DiagnosticStatus, f"{self.sim}/{ri.IRRIGATION_STATUS_TOPIC}", self._on_status,
-                                     ri.COMMAND_QOS)
-            # a command published before the simulator's subscription matched is lost: repeat it until accepted
-            self.create_timer(0.2, self._repeat_pending)
-        self.get_logger().info(f"policy {self.policy!r}, simulator {self.sim}, "
-                               f"{'driving' if self.drive_mode else 'reacting to observations'}")
-
-    def _on_observation(self, message: Float32MultiArray) -> None:
-        obs = ri.observation_from_message(message)
-        day = int(obs[ri.OBS_DAY])
-        if day == 0:
-            self.policy.reset(None)
-        mm = float(self.policy.act(obs))
-        self._pending = (day, mm)
-        self._publish_pending()
-        self.get_logger().debug(f"day {day}: {mm:.2f} mm")
-
-    def _publish_pending(self) -> None:
-        if self._pending is not None:
-            self._command.publish(ri.irrigation_command(*self._pending))
-            self.commands_sent += 1
-
-    def _on_status(self, message: DiagnosticStatus) -> None:
-        status = ri.status_values(message)
-        if self._pending is None or status["day"] != self._pending[0]:
-            return
-        if status["accepted"] and status["irrigation_mm"] == self._pending[1]:
-            self._pending = None
-        elif not status["accepted"] and status["irrigation_mm"] == self._pending[1]:
-            self.get_logger().warning(f"command for day {status['day']:g} rejected: {status['message']}")
-            self._pending = None
-
-    def _repeat_pending(self) -> None:
-        if self._pending is not None and self._command.get_subscription_count() > 0:
-            self._publish_pending()
-
-    def drive(self, executor) -> list[dict]:
-        """Grow ``seasons`` seasons through the simulator; returns one summary per season."""
-        seasons = self.get_parameter("seasons").value
-        seed = self.get_parameter("seed").value
-        client = SimClient(self, executor, self.sim, timeout=self.get_parameter("timeout").value)
-        client.connect()
-        summaries = []
-        for k in range(seasons):
-            if k == 0:
-                # -2: the simulator's own seed parameter, untouched
-                obs, info = client.reset(seed=UNCHANGED if seed == -2 else (None if seed == -1 else seed),
-                                         weather_season=UNCHANGED)
-            else:
-                obs, info = client.reset(seed=None, weather_season=UNCHANGED)  # continue the stream
-            self.policy.reset(None if seed < 0 else seed + k)
-            water = 0.0
-            total = 0.0
-            days = 0
-            done = False
-            summary = info
-            while not done:
-                mm = float(self.policy.act(obs))
-                obs, reward, terminated, truncated, summary = client.step(mm)
-                water += summary["irrigation_mm"]
-                total += reward
-                days += 1
-                done = terminated or truncated
-            potential = info.get("potential_yield_t_ha") or math.nan
-            result = {"episode": summary["episode"], "scenario": info.get("scenario"), "seed": info.get("seed"),
-                      "weather": info.get("weather_source"), "policy": self.policy.name, "days": days,
-                      "matured": bool(summary["terminated"]), "yield_t_ha": summary["yield_t_ha"],
-                      "irrigation_mm": water, "return": total,
-                      "normalized_return": total / potential if potential else None}
-            summaries.append(result)
-            print("season summary: " + json.dumps(result), flush=True)
-            self.get_logger().info(
-                f"season {k + 1}/{seasons} ({info.get('weather_source')}): yield {result['yield_t_ha']:.2f} t/ha, "
-                f"irrigation {water:.0f} mm, return {total:.3f} over {days} days "
-                f"({'matured' if result['matured'] else 'weather ran out'})")
-        client.close()
-        return summaries
+    lines = [__doc__.split("\n\n")[0], "", "usage: agent_node [--help] [--ros-args -p NAME:=VALUE ...]", "",
+             "parameters:"]
+    for name, (default, descriptor) in PARAMETERS.items():
+        lines.append(f"  {name} (default {default!r}): {descriptor.description}"
+                     + (f" [{descriptor.additional_constraints}]" if descriptor.additional_constraints else ""))
+    return "\n".join(lines)
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
+    argv = list(sys.argv if args is None else args)
+    ours = argv[1:argv.index("--ros-args")] if "--ros-args" in argv else argv[1:]
+    if any(a in ("-h", "--help") for a in ours):
+        print(usage())
+        return 0
+    if ours:
+        print(f"agent_node: unknown argument {ours[0]!r}; parameters go after --ros-args (see --help)",
+              file=sys.stderr)
+        return 2
+    # Our own handlers, not rclpy's: rclpy's shut the context down from another thread, and whichever rclpy call
+    # the main thread was in then failed with one of several errors (a traceback, status 1). They are installed
+    # before rclpy, the task and the policy load (seconds), so a signal during the loading stops cleanly too.
+    signal.signal(signal.SIGINT, _stop_on_signal)
+    signal.signal(signal.SIGTERM, _stop_on_signal)
+    try:
+        return _run(argv)
+    except StopSignal:
+        return 0
+    finally:
+        for kind in (signal.SIGINT, signal.SIGTERM):  # from here on the process only exits
+            signal.signal(kind, signal.SIG_IGN)
+
+
+def _run(argv: list[str]) -> int:
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    from .agent import NODE_NAME, AgentNode
+    from .sim_client import SimError
+
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
-    code = 0
     try:
         try:
             node = AgentNode()
-        except (KeyboardInterrupt, ExternalShutdownException):
-            raise
-        except Exception as error:  # noqa: BLE001 - bad parameters or a missing policy file: exit 2
+        except Exception as error:  # noqa: BLE001 - bad parameters or a policy file: one line, exit 2
             rclpy.logging.get_logger(NODE_NAME).fatal(f"cannot start: {type(error).__name__}: {error}")
             return 2
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        if node.drive_mode:
-            try:
-                node.drive(executor)
-            except (SimError, TimeoutError) as error:
-                node.get_logger().error(f"season aborted: {error}")
-                code = 1
-        else:
-            executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        if not node.drive_mode:
+            while True:  # bounded waits: the signal handler runs between two of them
+                executor.spin_once(timeout_sec=0.1)
+        try:
+            node.drive(executor)
+        except (SimError, TimeoutError) as error:
+            node.get_logger().error(f"season aborted: {error}")
+            return 1
+        return 0
     finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+        try:
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
+        except Exception:  # noqa: BLE001
+            if _stopped_by is None:
+                raise
+            # the signal interrupted an rclpy call half-way: what is left of the node goes with the process
+        if _stopped_by is not None:
+            rclpy.logging.get_logger(NODE_NAME).info(f"stopped by {_stopped_by}")
 
 
 if __name__ == "__main__":

@@ -18,6 +18,9 @@ the caller's node and executor (one thread; no background spinning), with ``call
        widened to float64 in JSON, exactly). With ``verify_topics`` the client also waits for the observation
        topic and checks it equals the response's observation bit for bit.
 
+``reset`` leaves the simulator's parameters as their user set them: the per-reset ``seed`` and
+``weather_season`` it asks for are set for that one reset, and their previous values restored right after.
+
 A command published before the two endpoints have matched is lost; :meth:`connect` waits for the matching
 and the client republishes after ``ack_timeout`` (harmless: the latest command of a day counts, a stepping
 command for a day already stepped is refused).
@@ -95,22 +98,26 @@ class SimClient:
 
     # --- connection --------------------------------------------------------------------------------------
 
-    def connect(self, timeout: float = 30.0) -> dict:
+    def connect(self, timeout: float | None = None) -> dict:
         """Wait until the simulator's services exist and the command/status topics have matched, then read
         its ``mode`` and ``scenario`` parameters (an idempotent round trip: by the time it returns, the
-        simulator has discovered this node's endpoints, all created before). Returns those parameters."""
+        simulator has discovered this node's endpoints, all created before). Returns those parameters.
+        ``timeout`` (s; default: the client's) bounds the whole wait: ServiceTimeout names what is missing."""
+        timeout = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + timeout
         for client in (self._reset, self._step, self._set_parameters, self._get_parameters):
-            wait_for_service(self.executor, client, max(0.1, deadline - time.monotonic()))
+            try:
+                wait_for_service(self.executor, client, max(0.0, deadline - time.monotonic()))
+            except ServiceTimeout:
+                raise ServiceTimeout(f"no simulator {self.sim} within {timeout:.1f} s (service {client.srv_name} "
+                                     "not found)") from None
         spin_until(self.executor, lambda: self._command.get_subscription_count() >= 1
                    and self._status.get_publisher_count() >= 1
                    and (self._obs_sub is None or self._obs_sub.get_publisher_count() >= 1)
                    and (self._result_sub is None or (self._result_sub.get_publisher_count() >= 1
                                                      and self._step_command.get_subscription_count() >= 1)),
                    max(0.1, deadline - time.monotonic()), what=f"the topics of {self.sim}", step=0.02)
-        names = ["mode", "scenario"]
-        response = self._call_idempotent(self._get_parameters, GetParameters.Request(names=names))
-        values = {name: value.string_value for name, value in zip(names, response.values)}
+        values = self.get_parameters(["mode", "scenario"])
         if values.get("mode") not in (None, "lockstep"):
             raise SimError(f"{self.sim} is in mode {values['mode']!r}: a client steps it only in lockstep mode")
         return values
@@ -128,34 +135,51 @@ class SimClient:
 
     # --- parameters --------------------------------------------------------------------------------------
 
+    def get_parameters(self, names: list[str]) -> dict:
+        """The simulator's current values of the parameters ``names`` (as Python values)."""
+        response = self._call_idempotent(self._get_parameters, GetParameters.Request(names=list(names)))
+        return {name: _python_value(value) for name, value in zip(names, response.values)}
+
     def set_parameters(self, **values) -> None:
         """Set simulator parameters (skipping those already set to the same value by this client)."""
         changed = {k: v for k, v in values.items() if self._parameters.get(k, object()) != v
                    or type(self._parameters.get(k)) is not type(v)}
-        if not changed:
+        self._set(changed)
+        self._parameters.update(changed)
+
+    def _set(self, values: dict) -> None:
+        if not values:
             return
         request = SetParameters.Request()
-        for name, value in changed.items():
+        for name, value in values.items():
             request.parameters.append(Parameter(name=name, value=_parameter_value(value)))
         response = self._call_idempotent(self._set_parameters, request)
-        for (name, value), result in zip(changed.items(), response.results):
+        for (name, value), result in zip(values.items(), response.results):
             if not result.successful:
                 raise SimError(f"{self.sim}: parameter {name}={value!r} refused: {result.reason}")
-            self._parameters[name] = value
 
     # --- season ------------------------------------------------------------------------------------------
 
     def reset(self, seed=None, weather_season=None, **parameters):
         """New season; ``seed`` None continues the simulator's random stream (like Gymnasium), UNCHANGED
-        leaves the simulator's seed parameter as it is; likewise ``weather_season`` (None: drawn).
+        uses the simulator's own seed parameter; likewise ``weather_season`` (None: drawn). The seed and
+        season apply to this reset only: the simulator's parameters are restored right after it.
+        ``parameters`` (crop, scenario, ...) are set for good.
         Returns (observation float32 (20,), info dict: the simulator's reset summary)."""
+        this_reset = {}
         if seed is not UNCHANGED:
-            parameters["seed"] = -1 if seed is None else int(seed)
+            this_reset["seed"] = -1 if seed is None else int(seed)
         if weather_season is not UNCHANGED:
-            parameters["weather_season"] = -1 if weather_season is None else int(weather_season)
+            this_reset["weather_season"] = -1 if weather_season is None else int(weather_season)
         self.set_parameters(**parameters)
+        previous = self.get_parameters(list(this_reset)) if this_reset else {}
+        changed = {name: value for name, value in this_reset.items() if previous[name] != value}
+        self._set(changed)
         self._topic_obs.clear()
-        summary = self._trigger(self._reset)
+        try:
+            summary = self._trigger(self._reset)
+        finally:
+            self._set({name: previous[name] for name in changed})
         self.episode, self.day, self.ended = summary["episode"], summary["day"], False
         self.max_irrigation_mm = float(summary.get("max_irrigation_mm", math.inf))
         return self._observation(summary), summary
@@ -292,6 +316,13 @@ class SimClient:
             if topic.tobytes() != obs.tobytes():
                 raise SimError(f"day {day}: the observation topic differs from the step response: {topic} != {obs}")
         return obs
+
+
+def _python_value(value: ParameterValue):
+    """The Python value of a ParameterValue (None when the parameter is not set)."""
+    return {ParameterType.PARAMETER_BOOL: value.bool_value, ParameterType.PARAMETER_INTEGER: value.integer_value,
+            ParameterType.PARAMETER_DOUBLE: value.double_value,
+            ParameterType.PARAMETER_STRING: value.string_value}.get(value.type)
 
 
 def _parameter_value(value) -> ParameterValue:

@@ -1,24 +1,31 @@
-"""The agent node over ROS 2: reacting to the simulator's observations (someone else steps), and the
-README's main job (``python -m crop_agent_ros.run_farm``: sim + agent processes grow a season)."""
+"""The agent node over ROS 2: reacting to the simulator's observations (someone else steps), driving
+seasons, stopping cleanly on SIGTERM or SIGINT whenever they land, refusing a policy file made for other
+spaces, honouring its timeout, leaving the simulator's parameters alone; and the README's main job
+(``python -m crop_agent_ros.run_farm``: sim + agent processes grow a season)."""
 
 from __future__ import annotations
 
 import json
+import os
+import random
+import re
+import signal
 import subprocess
 import sys
+import time
 import uuid
 
 import pytest
 
-pytest.importorskip("rclpy")
-
 import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exists)
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from rcl_interfaces.srv import GetParameters  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from crop_agent_ros.ros_client import PrivateRos, call, wait_for_service  # noqa: E402
 from crop_agent_ros.ros_process import NodeProcess, isolated_ros_env  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
+from policy_files import ppo_file  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -64,3 +71,191 @@ def test_run_farm_grows_a_season_over_ros(tmp_path, policy):
     assert len(rows) == summary["days"]
     assert sum(float(r["irrigation_mm"]) for r in rows) == pytest.approx(summary["irrigation_mm"], rel=1e-12)
     assert log.with_suffix(".png").stat().st_size > 10_000  # the plot of the season
+
+
+def wait_for(condition, timeout: float, what: str, step: float = 0.01) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(step)
+
+
+def catches_sigterm(pid: int) -> bool:
+    """The process has a handler for SIGTERM (/proc's SigCgt mask): the agent's main has installed its own.
+    Before that no code of ours runs (the interpreter is still starting), and SIGTERM's default ends it."""
+    with open(f"/proc/{pid}/status") as status:
+        caught = next(int(line.split()[1], 16) for line in status if line.startswith("SigCgt:"))
+    return bool(caught & (1 << (signal.SIGTERM - 1)))
+
+
+def start_driving_agent(tmp_path, sim_name: str, name: str, policy: str = "refill", seasons: int = 1000,
+                        extra: tuple[str, ...] = ()) -> NodeProcess:
+    return NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name=name,
+                       log_path=tmp_path / f"{name}.out",
+                       ros_args=["-p", f"sim_node:={sim_name}", "-p", f"policy:={policy}", "-p", "drive:=true",
+                                 "-p", f"seasons:={seasons}", "-p", "timeout:=30.0", *extra])
+
+
+@pytest.fixture(scope="module")
+def shared_sim(tmp_path_factory):
+    sim, name, log = ros_support.start_sim(tmp_path_factory.mktemp("signals"))
+    yield name, log
+    assert sim.stop() == 0, sim.output()
+
+
+def log_rows(log) -> int:
+    return len(ros_support.read_log(log)) if log.exists() else 0
+
+
+# 20 trials, each with its own seed: even ones land during the start-up (rclpy, the task, the policy loading;
+# PPO's torch on every fourth), odd ones while the agent drives seasons (after the simulator logged its days).
+@pytest.mark.parametrize("trial", range(20))
+def test_sigterm_at_a_random_moment_exits_0_without_traceback(tmp_path, shared_sim, trial):
+    sim_name, log = shared_sim
+    rng = random.Random(1000 + trial)
+    policy = "ppo" if trial % 4 == 0 else "refill"
+    agent = start_driving_agent(tmp_path, sim_name, f"agent_{trial}", policy=policy)
+    try:
+        wait_for(lambda: agent.poll() is not None or catches_sigterm(agent.pid), 30, "the agent's signal handlers")
+        if trial % 2 == 0:
+            delay = rng.uniform(0.0, 2.5)
+        else:
+            rows = log_rows(log)
+            wait_for(lambda: log_rows(log) > rows + 2, 120, "the agent driving", step=0.05)
+            delay = rng.uniform(0.0, 1.0)
+        time.sleep(delay)
+        agent.process.send_signal(signal.SIGTERM)
+        status = agent.wait(60)
+    finally:
+        agent.stop()
+    output = agent.output()
+    assert status == 0 and "Traceback" not in output, (f"delay {delay:.3f} s", status, output)
+
+
+@pytest.mark.parametrize("trial", range(3))
+def test_two_sigints_while_driving_exit_0_without_traceback(tmp_path, shared_sim, trial):
+    """Ctrl-C to a process group that a launcher also stops with SIGINT: the second lands in the clean-up."""
+    sim_name, log = shared_sim
+    rng = random.Random(2000 + trial)
+    agent = start_driving_agent(tmp_path, sim_name, f"agent_int_{trial}")
+    try:
+        rows = log_rows(log)
+        wait_for(lambda: log_rows(log) > rows + 2, 120, "the agent driving", step=0.05)
+        time.sleep(rng.uniform(0.0, 0.5))
+        agent.process.send_signal(signal.SIGINT)
+        time.sleep(rng.uniform(0.0, 0.05))
+        agent.process.send_signal(signal.SIGINT)
+        status = agent.wait(60)
+    finally:
+        agent.stop()
+    output = agent.output()
+    assert status == 0 and "Traceback" not in output and "stopped by SIGINT" in output, (status, output)
+
+
+def test_drive_leaves_the_simulators_seed_parameter_as_it_was(tmp_path):
+    sim, name, log = ros_support.start_sim(tmp_path, params={"seed": 0})
+    agent = None
+    try:
+        agent = start_driving_agent(tmp_path, name, "agent_seed", seasons=2, extra=("-p", "seed:=5"))
+        assert agent.wait(300) == 0, agent.output()
+        with PrivateRos(f"inspector_{uuid.uuid4().hex[:6]}") as ros:
+            client = ros.node.create_client(GetParameters, f"{name}/get_parameters")
+            wait_for_service(ros.executor, client, 30)
+            values = ros.call(client, GetParameters.Request(names=["seed", "weather_season"])).values
+        assert (values[0].integer_value, values[1].integer_value) == (0, -1)
+        seeds = {}
+        for row in ros_support.read_log(log):
+            seeds.setdefault(int(row["episode"]), row["seed"])
+        assert list(seeds.values()) == ["5", ""]  # season 1 seeded with 5, season 2 continued the stream
+    finally:
+        if agent is not None:
+            agent.stop()
+        assert sim.stop() == 0, sim.output()
+
+
+def test_agent_without_a_simulator_gives_up_after_its_timeout(tmp_path):
+    timeout_s = 2.0
+    agent = start_driving_agent(tmp_path, f"/nobody_{uuid.uuid4().hex[:8]}/crop_sim", "agent_alone",
+                                extra=("-p", f"timeout:={timeout_s}"))
+    status = agent.wait(120)
+    output = agent.output()
+    # rclpy's log lines carry their time: from the node's start line to its error line
+    stamps = {level: float(stamp) for level, stamp in re.findall(r"^\[(INFO|ERROR)\] \[([0-9.]+)\]", output, re.M)}
+    assert status == 1 and "no simulator" in output, output
+    waited = stamps["ERROR"] - stamps["INFO"]
+    assert timeout_s <= waited <= timeout_s + 3.0, (waited, output)
+
+
+def test_agent_help_prints_usage_and_starts_no_node():
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.agent_node", "--help"], capture_output=True,
+                          text=True, timeout=120, env=isolated_ros_env(), cwd=ros_support.REPO)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    assert done.stdout.splitlines()[2] == "usage: agent_node [--help] [--ros-args -p NAME:=VALUE ...]"
+    for name in ("policy", "policy_file", "drive", "seasons", "seed", "timeout"):
+        assert f"\n  {name} (default " in done.stdout
+    assert "[INFO]" not in done.stdout  # no node was made
+
+
+@pytest.fixture(scope="module")
+def wrong_shape_policy(tmp_path_factory):
+    return ppo_file(tmp_path_factory.mktemp("policy") / "observes_5.zip", (5,))
+
+
+def test_agent_refuses_a_policy_of_other_spaces_at_load(tmp_path, wrong_shape_policy):
+    agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name="agent_policy",
+                        log_path=tmp_path / "agent.out",
+                        ros_args=["-p", "policy:=ppo", "-p", f"policy_file:={wrong_shape_policy}", "-p", "drive:=true"])
+    status = agent.wait(120)
+    (line,) = [line for line in agent.output().splitlines() if line.strip()]
+    assert status == 2 and "cannot start: PolicyFileError: " in line, (status, line)
+    assert f"{wrong_shape_policy}: its network observes Box of shape (5,)" in line
+
+
+def test_farm_refuses_a_policy_of_other_spaces_in_one_line(tmp_path, wrong_shape_policy):
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.run_farm", "--policy-file", str(wrong_shape_policy),
+                           "--log", str(tmp_path / "season.csv")], env=isolated_ros_env(), capture_output=True,
+                          text=True, timeout=300, cwd=ros_support.REPO)
+    (line,) = done.stderr.splitlines()
+    assert done.returncode == 2 and done.stdout == "", (done.returncode, done.stdout, done.stderr)
+    assert line.startswith("crop-sim farm: agent_node: cannot start: PolicyFileError: policy file "
+                           f"{wrong_shape_policy}: its network observes Box of shape (5,)"), line
+    assert not (tmp_path / "season.csv").exists() or log_rows(tmp_path / "season.csv") == 0  # no day was grown
+
+
+def processes_tagged(tag: str) -> list[tuple[int, str]]:
+    """Live processes (pid, command line) whose environment has FARM_TEST_TAG=``tag``: the farm passes its
+    environment on to its nodes."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit() or int(entry) == os.getpid():
+            continue
+        try:
+            with open(f"/proc/{entry}/environ", "rb") as environ:
+                if f"FARM_TEST_TAG={tag}".encode() not in environ.read().split(b"\0"):
+                    continue
+            with open(f"/proc/{entry}/cmdline", "rb") as cmdline:
+                found.append((int(entry), cmdline.read().replace(b"\0", b" ").decode(errors="replace")))
+        except OSError:
+            continue
+    return found
+
+
+def test_ctrl_c_to_the_farm_stops_both_nodes_without_traceback(tmp_path):
+    tag = uuid.uuid4().hex
+    log = tmp_path / "season.csv"
+    farm = subprocess.Popen([sys.executable, "-m", "crop_agent_ros.run_farm", "--policy", "refill", "--seasons", "100",
+                             "--log", str(log), "--no-plot"], env={**isolated_ros_env(), "FARM_TEST_TAG": tag},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ros_support.REPO,
+                            start_new_session=True)
+    try:
+        wait_for(lambda: log_rows(log) > 20, 180, "the farm growing days", step=0.1)
+        assert len(processes_tagged(tag)) == 3  # the farm and its two nodes
+        os.killpg(farm.pid, signal.SIGINT)  # what Ctrl-C in a terminal does: the whole process group
+        stdout, stderr = farm.communicate(timeout=60)
+    finally:
+        if farm.poll() is None:
+            farm.kill()
+            farm.communicate()
+    assert farm.returncode == 128 + signal.SIGINT and "Traceback" not in stdout + stderr, (stdout, stderr)
+    assert processes_tagged(tag) == []  # both nodes stopped (each runs in a session of its own)

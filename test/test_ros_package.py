@@ -1,10 +1,19 @@
 """The ament_python package: package.xml, what setup.py installs, the launch file and the parameter file
-agree with each other and with the parameters the nodes declare (no ROS 2 installation needed)."""
+agree with each other and with the parameters the nodes declare (no ROS 2 installation needed).
+
+The launch file runs under ``ros2 launch`` only: the ``launch`` and ``launch_ros`` packages are not on PyPI, so
+they are not installed here. Its tests load it with small recording stand-ins of the launch classes it uses
+(each records what it was built with) and check the description it builds and its exit handler's logic:
+that a failed agent makes the handler raise, which makes LaunchService.run, and so ``ros2 launch``, return 1.
+"""
 
 from __future__ import annotations
 
 import ast
+import importlib.util
 import os
+import sys
+import types
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -41,8 +50,7 @@ def test_setup_installs_what_ros2_run_and_launch_need():
 
 
 def test_launch_file_and_parameter_file_match_the_nodes():
-    pytest.importorskip("rclpy")
-    from crop_agent_ros import agent_node
+    from crop_agent_ros import agent as agent_node
     from crop_sim_ros import sim_node
 
     launch = ast.unparse(ast.parse((REPO / "launch" / "farm.launch.py").read_text()))
@@ -59,4 +67,86 @@ def test_launch_file_and_parameter_file_match_the_nodes():
         for key, value in values.items():  # same type as the declared default
             default = declared[node][key][0]
             assert type(value) is type(default), (node, key, value, default)
+
+
+class Recorded:
+    """A stand-in for a launch class: remembers its arguments."""
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.args}, {self.kwargs})"
+
+
+LAUNCH_NAMES = {
+    "launch": ["LaunchDescription"],
+    "launch.actions": ["DeclareLaunchArgument", "EmitEvent", "RegisterEventHandler"],
+    "launch.event_handlers": ["OnProcessExit"],
+    "launch.events": ["Shutdown"],
+    "launch.substitutions": ["LaunchConfiguration", "PathJoinSubstitution"],
+    "launch_ros.actions": ["Node"],
+    "launch_ros.parameter_descriptions": ["ParameterValue"],
+    "launch_ros.substitutions": ["FindPackageShare"],
+}
+
+
+@pytest.fixture()
+def launch_file(monkeypatch):
+    """farm.launch.py loaded with recording stand-ins of the launch classes."""
+    for module_name, class_names in LAUNCH_NAMES.items():
+        module = types.ModuleType(module_name)
+        for name in class_names:
+            setattr(module, name, type(name, (Recorded,), {}))
+        monkeypatch.setitem(sys.modules, module_name, module)
+    spec = importlib.util.spec_from_file_location("farm_launch", REPO / "launch" / "farm.launch.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def config_name(value) -> str:
+    assert type(value).__name__ == "LaunchConfiguration", value
+    return value.args[0]
+
+
+def test_launch_declares_namespace_seasons_and_log_path_and_passes_them_on(launch_file):
+    (entities,) = launch_file.generate_launch_description().args
+    declared = {e.args[0]: e.kwargs["default_value"] for e in entities
+                if type(e).__name__ == "DeclareLaunchArgument"}
+    assert set(declared) == {"params_file", "policy", "seasons", "namespace", "log_path"}
+    assert (declared["seasons"], declared["namespace"], declared["log_path"]) == ("1", "", "")
+    sim, agent = [e for e in entities if type(e).__name__ == "Node"]
+    assert (sim.kwargs["executable"], agent.kwargs["executable"]) == ("sim_node", "agent_node")
+    for node in (sim, agent):
+        assert config_name(node.kwargs["namespace"]) == "namespace"
+        assert config_name(node.kwargs["parameters"][0]) == "params_file"
+    log_path = sim.kwargs["parameters"][1]["log_path"]
+    assert config_name(log_path.args[0]) == "log_path" and log_path.kwargs == {"value_type": str}
+    overrides = agent.kwargs["parameters"][1]
+    assert overrides["drive"] is True
+    assert config_name(overrides["seasons"].args[0]) == "seasons" and overrides["seasons"].kwargs == {"value_type": int}
+    assert config_name(overrides["policy"].args[0]) == "policy"
+    namespace, suffix = overrides["sim_node"].args[0]  # the simulator in the agent's namespace
+    assert config_name(namespace) == "namespace" and suffix == "/crop_sim"
+
+
+class Exited:
+    """What OnProcessExit hands its handler: the process's exit status."""
+
+    def __init__(self, returncode: int):
+        self.returncode = returncode
+
+
+def test_launch_shuts_down_after_the_agent_and_fails_when_the_agent_fails(launch_file):
+    (entities,) = launch_file.generate_launch_description().args
+    (handler,) = [e.args[0] for e in entities if type(e).__name__ == "RegisterEventHandler"]
+    agent = [e for e in entities if type(e).__name__ == "Node"][1]
+    assert handler.kwargs["target_action"] is agent
+    on_exit = handler.kwargs["on_exit"]
+    (action,) = on_exit(Exited(0), context=None)  # done: shut the simulator down, the launch returns 0
+    assert type(action).__name__ == "EmitEvent" and type(action.kwargs["event"]).__name__ == "Shutdown"
+    for status in (1, 2, -15):  # failed: raising in a handler makes LaunchService.run return 1
+        with pytest.raises(launch_file.AgentFailed, match=f"agent_node exited with status {status}"):
+            on_exit(Exited(status), context=None)
 

@@ -1,0 +1,163 @@
+"""The agent node's class and parameters (run it with ``agent_node``: :mod:`crop_agent_ros.agent_node`,
+whose docstring describes what it does)."""
+
+
+from __future__ import annotations
+
+import json
+import math
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
+from rclpy.node import Node
+from diagnostic_msgs.msg import DiagnosticStatus
+from std_msgs.msg import Float32MultiArray, Float64MultiArray
+
+from crop_sim_ros import ros_interface as ri
+
+from .sim_client import UNCHANGED, SimClient
+
+POLICIES = ("zero", "constant", "best-constant", "refill", "ppo")
+NODE_NAME = "crop_agent"
+
+
+def _descriptor(kind, description, low=None, high=None, constraints=""):
+    d = ParameterDescriptor(type=kind, description=description, additional_constraints=constraints)
+    if kind == ParameterType.PARAMETER_DOUBLE and low is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=low, to_value=high, step=0.0)]
+    if kind == ParameterType.PARAMETER_INTEGER and low is not None:
+        d.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]
+    return d
+
+
+S, D, I, B = (ParameterType.PARAMETER_STRING, ParameterType.PARAMETER_DOUBLE, ParameterType.PARAMETER_INTEGER,
+              ParameterType.PARAMETER_BOOL)
+PARAMETERS = {
+    "sim_node": ("/" + ri.NODE_NAME, _descriptor(S, "fully qualified name of the simulator node")),
+    "policy": ("refill", _descriptor(S, "irrigation policy", constraints=" | ".join(POLICIES))),
+    "policy_file": ("", _descriptor(S, "policy ppo: Stable-Baselines3 PPO .zip ('' = the shipped ppo_benton.zip)")),
+    "constant_mm": (10.0, _descriptor(D, "policy constant: irrigation per day, mm", 0.0, 100.0)),
+    "drive": (False, _descriptor(B, "run the seasons itself (reset, command, step ...) and exit")),
+    "seasons": (1, _descriptor(I, "drive: number of seasons", 1, 100000)),
+    "seed": (-2, _descriptor(I, "drive: seed of the first season (later seasons continue the stream); -2 = the "
+                                "simulator's own seed parameter, -1 = unseeded", -2, 2**31 - 1)),
+    "timeout": (10.0, _descriptor(D, "drive: seconds to wait for any one answer of the simulator", 0.1, 3600.0)),
+}
+
+
+def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.0):
+    """The policy named ``kind`` from :mod:`crop_agent_ros.policies` (ValueError for an unknown name,
+    FileNotFoundError for a missing policy file)."""
+    from .policies import ConstantPolicy, make_policy  # noqa: PLC0415
+
+    if kind not in POLICIES:
+        raise ValueError(f"unknown policy {kind!r}; known: {', '.join(POLICIES)}")
+    if kind == "constant":
+        return ConstantPolicy(constant_mm)
+    if kind == "ppo":
+        return make_policy("ppo", ppo_path=policy_file or None)
+    return make_policy(kind)
+
+
+class AgentNode(Node):
+    """What it does: see :mod:`crop_agent_ros.agent_node`."""
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs):
+        super().__init__(node_name, **kwargs)
+        try:
+            self._setup()
+        except BaseException:
+            self.destroy_node()  # a half-built node must not outlive the context (a hang at exit)
+            raise
+
+    def _setup(self) -> None:
+        for name, (default, descriptor) in PARAMETERS.items():
+            self.declare_parameter(name, default, descriptor)
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        self.sim = "/" + p["sim_node"].strip("/")  # fully qualified: the launch file may give "ns/crop_sim"
+        self.policy = make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"])
+        self.drive_mode = bool(p["drive"])
+        self.commands_sent = 0
+        if not self.drive_mode:
+            self.policy.reset(None)
+            self._pending: tuple[int, float] | None = None  # today's command until the simulator accepts it
+            self._command = self.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_TOPIC}",
+                                                  ri.COMMAND_QOS)
+            self.create_subscription(Float32MultiArray, f"{self.sim}/{ri.OBSERVATION_TOPIC}", self._on_observation,
+                                     ri.LATCHED_READER_QOS)
+            self.create_subscription(DiagnosticStatus, f"{self.sim}/{ri.IRRIGATION_STATUS_TOPIC}", self._on_status,
+                                     ri.COMMAND_QOS)
+            # a command published before the simulator's subscription matched is lost: repeat it until accepted
+            self.create_timer(0.2, self._repeat_pending)
+        self.get_logger().info(f"policy {self.policy!r}, simulator {self.sim}, "
+                               f"{'driving' if self.drive_mode else 'reacting to observations'}")
+
+    def _on_observation(self, message: Float32MultiArray) -> None:
+        obs = ri.observation_from_message(message)
+        day = int(obs[ri.OBS_DAY])
+        if day == 0:
+            self.policy.reset(None)
+        mm = float(self.policy.act(obs))
+        self._pending = (day, mm)
+        self._publish_pending()
+        self.get_logger().debug(f"day {day}: {mm:.2f} mm")
+
+    def _publish_pending(self) -> None:
+        if self._pending is not None:
+            self._command.publish(ri.irrigation_command(*self._pending))
+            self.commands_sent += 1
+
+    def _on_status(self, message: DiagnosticStatus) -> None:
+        status = ri.status_values(message)
+        if self._pending is None or status["day"] != self._pending[0]:
+            return
+        if status["accepted"] and status["irrigation_mm"] == self._pending[1]:
+            self._pending = None
+        elif not status["accepted"] and status["irrigation_mm"] == self._pending[1]:
+            self.get_logger().warning(f"command for day {status['day']:g} rejected: {status['message']}")
+            self._pending = None
+
+    def _repeat_pending(self) -> None:
+        if self._pending is not None and self._command.get_subscription_count() > 0:
+            self._publish_pending()
+
+    def drive(self, executor) -> list[dict]:
+        """Grow ``seasons`` seasons through the simulator; returns one summary per season."""
+        seasons = self.get_parameter("seasons").value
+        seed = self.get_parameter("seed").value
+        client = SimClient(self, executor, self.sim, timeout=self.get_parameter("timeout").value)
+        client.connect()  # within the timeout too: no simulator is an error after ``timeout`` seconds
+        summaries = []
+        for k in range(seasons):
+            if k == 0:
+                # -2: the simulator's own seed parameter, untouched
+                obs, info = client.reset(seed=UNCHANGED if seed == -2 else (None if seed == -1 else seed),
+                                         weather_season=UNCHANGED)
+            else:
+                obs, info = client.reset(seed=None, weather_season=UNCHANGED)  # continue the stream
+            self.policy.reset(None if seed < 0 else seed + k)
+            water = 0.0
+            total = 0.0
+            days = 0
+            done = False
+            summary = info
+            while not done:
+                mm = float(self.policy.act(obs))
+                obs, reward, terminated, truncated, summary = client.step(mm)
+                water += summary["irrigation_mm"]
+                total += reward
+                days += 1
+                done = terminated or truncated
+            potential = info.get("potential_yield_t_ha") or math.nan
+            result = {"episode": summary["episode"], "scenario": info.get("scenario"), "seed": info.get("seed"),
+                      "weather": info.get("weather_source"), "policy": self.policy.name, "days": days,
+                      "matured": bool(summary["terminated"]), "yield_t_ha": summary["yield_t_ha"],
+                      "irrigation_mm": water, "return": total,
+                      "normalized_return": total / potential if potential else None}
+            summaries.append(result)
+            print("season summary: " + json.dumps(result), flush=True)
+            self.get_logger().info(
+                f"season {k + 1}/{seasons} ({info.get('weather_source')}): yield {result['yield_t_ha']:.2f} t/ha, "
+                f"irrigation {water:.0f} mm, return {total:.3f} over {days} days "
+                f"({'matured' if result['matured'] else 'weather ran out'})")
+        client.close()
+        return summaries
