@@ -86,6 +86,12 @@ READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=R
 # A late joiner that wants the latest day at once (monitoring, tests).
 LATCHED_READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# A client of ~/step or ~/reset that shares the simulator with other clients. Every client of a ROS 2 service
+# receives every response (rmw_fastrtps discards the other clients' ones when it takes them), so with the
+# services' default depth of 10 a client that runs slower than the others loses its own response when more than
+# 10 other answers arrive before it takes it (the day was stepped; the caller times out). Keep all responses.
+SERVICE_CLIENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.VOLATILE)
 
 # Observation layout: the task's own names and units (crop_sim_ros.task.core), as "name[unit]" labels.
 OBSERVATION_LABELS = tuple(f"{name}[{unit}]" for name, unit in zip(OBSERVATION_NAMES, OBSERVATION_UNITS))

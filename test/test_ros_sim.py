@@ -60,10 +60,13 @@ def connect(ros, name, **kwargs) -> SimClient:
 
 def step_client(ros, name):
     """A ~/step client that the simulator has surely discovered: wait for the service, then one idempotent
-    round trip (get_parameters) from the same node, whose endpoints all exist already."""
+    round trip (get_parameters) from the same node, whose endpoints all exist already. It keeps every response
+    (ri.SERVICE_CLIENT_QOS): with the default depth of 10, a client starved of CPU while another client of the
+    same simulator got more than 10 answers lost its own (the day was stepped, the call timed out: 5 of 60 runs
+    of the two-client test with the other core loaded, 0 of 25 with this QoS)."""
     from rcl_interfaces.srv import GetParameters
 
-    step = ros.node.create_client(Trigger, f"{name}/step")
+    step = ros.node.create_client(Trigger, f"{name}/step", qos_profile=ri.SERVICE_CLIENT_QOS)
     probe = ros.node.create_client(GetParameters, f"{name}/get_parameters")
     wait_for_service(ros.executor, step, 30)
     wait_for_service(ros.executor, probe, 30)
