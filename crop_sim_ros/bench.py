@@ -1,13 +1,19 @@
 """``crop-sim bench``: throughput of the crop model (and of the irrigation environments, when present).
 
 Prints field-days per second for one field (array path and scalar path) and for a batch of fields over a
-full season. Machines here are shared and noisy: compare figures from one run, not across runs.
+full season. Machines here are shared and noisy: every run first prints the CPU model and the load average,
+and every figure is followed by what else ran during its measurement (:class:`MachineLoad`: each CPU's
+busy share from ``/proc/stat`` and the CPUs other processes used, i.e. all busy time minus this
+process's own CPU time). Compare figures from one run, or from runs with the same load.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import platform
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -16,6 +22,82 @@ from .model import zhao2019_library
 from .model.simple import SCALAR_MATH, scalar_parameters, scalar_state
 
 SEASON_DAYS = 183
+
+
+def cpu_model() -> str:
+    """The CPU's model name (/proc/cpuinfo; the platform's processor string elsewhere)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def machine_summary() -> str:
+    """CPU model, CPU count (and those this process may use), load averages over 1, 5 and 15 minutes."""
+    usable = sorted(os.sched_getaffinity(0))
+    load = " ".join(f"{x:.2f}" for x in os.getloadavg())
+    return (f"{cpu_model()}, {os.cpu_count()} CPUs (this process may use {_cpu_list(usable)}); "
+            f"load average {load} (1, 5, 15 min)")
+
+
+def _cpu_list(cpus: list[int]) -> str:
+    return f"{cpus[0]}-{cpus[-1]}" if len(cpus) > 1 and cpus == list(range(cpus[0], cpus[-1] + 1)) else \
+        ",".join(map(str, cpus))
+
+
+def _busy_s_per_cpu(proc_stat: str | None = None) -> list[float]:
+    """Seconds each CPU spent busy since boot (/proc/stat, or its text: all but idle and iowait)."""
+    ticks = os.sysconf("SC_CLK_TCK")
+    busy = []
+    for line in (Path("/proc/stat").read_text() if proc_stat is None else proc_stat).splitlines():
+        name, *values = line.split()
+        if name.startswith("cpu") and name != "cpu":
+            user, nice, system, idle, iowait, irq, softirq, steal = (int(v) for v in values[:8])
+            busy.append((user + nice + system + irq + softirq + steal) / ticks)
+    return busy
+
+
+def _cpu_s_of(pid: int) -> float:
+    """CPU seconds (user + system) a live process has used (/proc/PID/stat fields 14 and 15); 0 if gone."""
+    try:
+        after_name = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    return (int(after_name[11]) + int(after_name[12])) / os.sysconf("SC_CLK_TCK")
+
+
+class MachineLoad:
+    """What ran on the machine between construction and :meth:`figures`: each CPU's busy share and the
+    CPUs used by other processes (every CPU's busy time minus the CPU time of this process, threads
+    included, and of ``own_pids``, e.g. its ROS peers, per second of wall time)."""
+
+    def __init__(self, own_pids: tuple[int, ...] = ()):
+        self._own_pids = tuple(own_pids)
+        self._start = self._sample()
+
+    def _sample(self) -> tuple[float, list[float], float]:
+        own = sum(os.times()[:2]) + sum(_cpu_s_of(pid) for pid in self._own_pids)
+        return time.perf_counter(), _busy_s_per_cpu(), own
+
+    def figures(self) -> dict:
+        """wall_s; cpu_busy: each CPU's busy share; this_process_cpus, other_cpus: CPUs used on average."""
+        (wall0, busy0, own0), (wall1, busy1, own1) = self._start, self._sample()
+        wall = max(wall1 - wall0, 1e-9)
+        busy = [(b - a) / wall for a, b in zip(busy0, busy1)]
+        own = (own1 - own0) / wall
+        return {"wall_s": wall, "cpu_busy": [min(b, 1.0) for b in busy], "this_process_cpus": own,
+                "other_cpus": max(sum(busy) - own, 0.0)}
+
+    def summary(self) -> str:
+        f = self.figures()
+        if f["wall_s"] < 0.2:  # /proc/stat counts in 10 ms ticks
+            return f"{f['wall_s'] * 1e3:.0f} ms: too short to measure the load"
+        ours = "this one" if not self._own_pids else "this one and its peers"
+        return (f"CPUs busy {', '.join(f'{b:.0%}' for b in f['cpu_busy'])}; other processes "
+                f"{f['other_cpus']:.2f} CPUs, {ours} {f['this_process_cpus']:.2f}")
 
 
 def _season_weather(days: int, n_fields: int, seed: int) -> list[np.ndarray]:
@@ -28,8 +110,9 @@ def _season_weather(days: int, n_fields: int, seed: int) -> list[np.ndarray]:
             rng.uniform(2, 9, (days, n_fields))]
 
 
-def bench_model(n_fields: int, repeats: int = 3, seed: int = 0) -> float:
-    """Best-of-``repeats`` field-days per second of the array path for ``n_fields`` over a season."""
+def bench_model(n_fields: int, repeats: int = 3, seed: int = 0, seasons: int = 1) -> float:
+    """Best-of-``repeats`` field-days per second of the array path for ``n_fields`` over ``seasons``
+    seasons (several for a small batch: long enough for the load figures)."""
     library = zhao2019_library()
     params = repeat_parameters(field_parameters(library.species("potato"),
                                                 library.cultivar("potato", "Russet Burbank"),
@@ -40,16 +123,17 @@ def bench_model(n_fields: int, repeats: int = 3, seed: int = 0) -> float:
     irrigation = np.full(n_fields, 5.0)
     best = np.inf
     for _ in range(repeats):
-        state = initial_state(params)
         start = time.perf_counter()
-        for day in days:
-            state, _ = step(params, state, day, irrigation)
+        for _ in range(seasons):
+            state = initial_state(params)
+            for day in days:
+                state, _ = step(params, state, day, irrigation)
         best = min(best, time.perf_counter() - start)
-    return n_fields * SEASON_DAYS / best
+    return seasons * n_fields * SEASON_DAYS / best
 
 
-def bench_scalar(repeats: int = 3, seed: int = 0) -> float:
-    """Best-of-``repeats`` field-days per second of the one-field scalar path."""
+def bench_scalar(repeats: int = 3, seed: int = 0, seasons: int = 1) -> float:
+    """Best-of-``repeats`` field-days per second of the one-field scalar path over ``seasons`` seasons."""
     library = zhao2019_library()
     params = field_parameters(library.species("potato"), library.cultivar("potato", "Russet Burbank"),
                               library.soil("Benton USA potato"), Management(co2_ppm=369.0))
@@ -58,12 +142,13 @@ def bench_scalar(repeats: int = 3, seed: int = 0) -> float:
     one_field = scalar_parameters(params)
     best = np.inf
     for _ in range(repeats):
-        state = scalar_state(initial_state(params))
         start = time.perf_counter()
-        for day in days:
-            state, _ = step(one_field, state, day, 5.0, xp=SCALAR_MATH)
+        for _ in range(seasons):
+            state = scalar_state(initial_state(params))
+            for day in days:
+                state, _ = step(one_field, state, day, 5.0, xp=SCALAR_MATH)
         best = min(best, time.perf_counter() - start)
-    return SEASON_DAYS / best
+    return seasons * SEASON_DAYS / best
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -72,12 +157,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model-only", action="store_true", help="skip the environment benchmarks")
 
 
+def figure_line(label: str, value: float, unit: str, load: MachineLoad) -> str:
+    """One printed figure, with the load during its measurement."""
+    return f"  {label:<48} {value:>12,.0f} {unit}   ({load.summary()})"
+
+
+def measured(label: str, measure, unit: str = "field-days/s", echo=print) -> float:
+    """Run ``measure()``, print its figure with the load during the measurement; return the figure."""
+    load = MachineLoad()
+    value = measure()
+    echo(figure_line(label, value, unit, load))
+    return value
+
+
 def run(args: argparse.Namespace) -> int:
-    print(f"SIMPLE model, {SEASON_DAYS}-day season, one core, best of {args.repeats}:")
-    print(f"  N = 1 (array path)        {bench_model(1, args.repeats):>14,.0f} field-days/s")
-    print(f"  N = 1 (scalar path)       {bench_scalar(args.repeats):>14,.0f} field-days/s")
-    print(f"  N = {args.fields:<6} (batched)    {bench_model(args.fields, args.repeats):>14,.0f} field-days/s")
+    print(f"machine: {machine_summary()}")
+    print(f"SIMPLE model, {SEASON_DAYS}-day season, one thread, best of {args.repeats}:")
+    measured("N = 1 (array path, 20 seasons a run)", lambda: bench_model(1, args.repeats, seasons=20))
+    measured("N = 1 (scalar path, 200 seasons a run)", lambda: bench_scalar(args.repeats, seasons=200))
+    measured(f"N = {args.fields} (batched)", lambda: bench_model(args.fields, args.repeats))
     if not args.model_only:
         from .task.bench import bench_env  # the environment layer; imported only when asked for
         bench_env()
+    print(f"machine after the run: load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0

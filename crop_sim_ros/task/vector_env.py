@@ -10,8 +10,9 @@ the new season's first observation; the final one is in ``infos["final_obs"]``, 
 where ``infos["_final_obs"]``, and the final infos in ``infos["final_info"]``).
 
 Randomness: one generator for all fields (``reset(seed=...)``; the observation noise from an SFC64 stream
-seeded by it and drawn a step ahead, see :class:`PrefetchedNormal`): the same seed and actions give the
-same batch, bit for bit. Without observation noise, field i equals a single ``IrrigationEnv`` on the same
+seeded by it, drawn a step ahead on a worker thread when the process may use a second CPU, see
+:class:`PrefetchedNormal` and ``noise_thread``): the same seed and actions give the same batch, bit for
+bit, with or without the thread. Without observation noise, field i equals a single ``IrrigationEnv`` on the same
 season with the same actions; with noise it draws from the shared stream instead of its own.
 
 ``infos``: arrays of shape (N,) (each with its ``_key`` mask, all True): ``day``, ``season`` (index into
@@ -49,18 +50,19 @@ class PrefetchedNormal:
     run. Every call consumes exactly one block of ``(rows, columns)`` from one SFC64 stream (about 30 %
     faster than numpy's default PCG64) and returns its first ``shape[0]`` rows, so the values depend only
     on the seed and the sequence of calls, never on the threads' timing. Below ``MIN_ROWS_TO_PREFETCH``
-    rows the hand-off costs more than it saves, and blocks are drawn in place (the same values).
+    rows the hand-off costs more than it saves, and blocks are drawn in place (the same values); so they
+    are with ``thread=False`` (on one CPU the worker only takes turns with the main thread).
     """
 
     MIN_ROWS_TO_PREFETCH = 2048
     _executor: ThreadPoolExecutor | None = None
     _executor_pid = -1  # a forked child (e.g. SB3's SubprocVecEnv) needs its own worker thread
 
-    def __init__(self, seed: int, rows: int, columns: int):
+    def __init__(self, seed: int, rows: int, columns: int, thread: bool = True):
         self._stream = np.random.Generator(np.random.SFC64(seed))
         self._shape = (rows, columns)
         self._next: Future | None = None
-        if rows >= self.MIN_ROWS_TO_PREFETCH:
+        if thread and rows >= self.MIN_ROWS_TO_PREFETCH:
             if PrefetchedNormal._executor_pid != os.getpid():
                 PrefetchedNormal._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="noise")
                 PrefetchedNormal._executor_pid = os.getpid()
@@ -88,15 +90,21 @@ class IrrigationVectorEnv(VectorEnv):
     ``yield_value_per_t``, ``water_cost_per_mm``, ``quota_mm``: paired comparisons on the same terms);
     ``{"weathers": [WeatherSeries] * N}`` grows field i in the given series (sown on its first
     day). Later autoresets draw from the scenario's seasons again.
+
+    ``noise_thread``: draw the observation noise a step ahead on a worker thread (default: when this
+    process may run on more than one CPU, ``os.sched_getaffinity``); False draws it on the calling thread.
+    The values are the same either way.
     """
 
     def __init__(self, num_envs: int = 1, scenario: str | Scenario = "benton-generated",
-                 data_dir: str | Path | None = None, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP):
+                 data_dir: str | Path | None = None, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+                 noise_thread: bool | None = None):
         self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario, data_dir)
         self.num_envs = int(num_envs)
         if self.num_envs < 1:
             raise ValueError(f"num_envs must be >= 1, got {num_envs}")
         self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.noise_thread = len(os.sched_getaffinity(0)) > 1 if noise_thread is None else bool(noise_thread)
         if self.autoreset_mode == AutoresetMode.DISABLED:
             raise ValueError("IrrigationVectorEnv supports AutoresetMode.NEXT_STEP and SAME_STEP")
         self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": []}
@@ -117,7 +125,7 @@ class IrrigationVectorEnv(VectorEnv):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         self._noise_rng = PrefetchedNormal(int(self.np_random.integers(2**63)), self.num_envs,
-                                           self.params.noise_columns)
+                                           self.params.noise_columns, self.noise_thread)
         options = dict(options or {})
         weathers = options.pop("weathers", None)
         season = options.pop("season", None)
