@@ -48,16 +48,18 @@ def _cpu_list(cpus: list[int]) -> str:
         ",".join(map(str, cpus))
 
 
-def _busy_s_per_cpu(proc_stat: str | None = None) -> list[float]:
-    """Seconds each CPU spent busy since boot (/proc/stat, or its text: all but idle and iowait)."""
+def _busy_s_per_cpu(proc_stat: str | None = None) -> tuple[list[float], float]:
+    """Seconds each CPU spent running processes since boot (/proc/stat, or its text: user, nice, system,
+    irq, softirq), and the seconds the hypervisor took from all CPUs (steal)."""
     ticks = os.sysconf("SC_CLK_TCK")
-    busy = []
+    busy, stolen = [], 0
     for line in (Path("/proc/stat").read_text() if proc_stat is None else proc_stat).splitlines():
         name, *values = line.split()
         if name.startswith("cpu") and name != "cpu":
             user, nice, system, idle, iowait, irq, softirq, steal = (int(v) for v in values[:8])
-            busy.append((user + nice + system + irq + softirq + steal) / ticks)
-    return busy
+            busy.append((user + nice + system + irq + softirq) / ticks)
+            stolen += steal
+    return busy, stolen / ticks
 
 
 def _cpu_s_of(pid: int) -> float:
@@ -78,26 +80,28 @@ class MachineLoad:
         self._own_pids = tuple(own_pids)
         self._start = self._sample()
 
-    def _sample(self) -> tuple[float, list[float], float]:
+    def _sample(self) -> tuple[float, tuple[list[float], float], float]:
         own = sum(os.times()[:2]) + sum(_cpu_s_of(pid) for pid in self._own_pids)
         return time.perf_counter(), _busy_s_per_cpu(), own
 
     def figures(self) -> dict:
-        """wall_s; cpu_busy: each CPU's busy share; this_process_cpus, other_cpus: CPUs used on average."""
-        (wall0, busy0, own0), (wall1, busy1, own1) = self._start, self._sample()
+        """wall_s; cpu_busy: each CPU's busy share; this_process_cpus, other_cpus: CPUs used on average;
+        stolen_cpus: CPU time the hypervisor took (a virtual machine's host was busy too)."""
+        (wall0, (busy0, stolen0), own0), (wall1, (busy1, stolen1), own1) = self._start, self._sample()
         wall = max(wall1 - wall0, 1e-9)
         busy = [(b - a) / wall for a, b in zip(busy0, busy1)]
         own = (own1 - own0) / wall
         return {"wall_s": wall, "cpu_busy": [min(b, 1.0) for b in busy], "this_process_cpus": own,
-                "other_cpus": max(sum(busy) - own, 0.0)}
+                "other_cpus": max(sum(busy) - own, 0.0), "stolen_cpus": (stolen1 - stolen0) / wall}
 
     def summary(self) -> str:
         f = self.figures()
         if f["wall_s"] < 0.2:  # /proc/stat counts in 10 ms ticks
             return f"{f['wall_s'] * 1e3:.0f} ms: too short to measure the load"
         ours = "this one" if not self._own_pids else "this one and its peers"
+        stolen = f"; hypervisor took {f['stolen_cpus']:.2f} CPUs" if f["stolen_cpus"] >= 0.01 else ""
         return (f"CPUs busy {', '.join(f'{b:.0%}' for b in f['cpu_busy'])}; other processes "
-                f"{f['other_cpus']:.2f} CPUs, {ours} {f['this_process_cpus']:.2f}")
+                f"{f['other_cpus']:.2f} CPUs, {ours} {f['this_process_cpus']:.2f}{stolen}")
 
 
 def _season_weather(days: int, n_fields: int, seed: int) -> list[np.ndarray]:

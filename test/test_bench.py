@@ -13,15 +13,17 @@ from crop_agent_ros.cli import main
 
 def test_busy_seconds_per_cpu_from_proc_stat_text():
     ticks = os.sysconf("SC_CLK_TCK")
-    text = ("cpu  300 10 100 5000 40 6 4 2 0 0\n"
-            "cpu0 200 10 60 2000 30 5 3 2 0 0\n"  # busy: user nice system irq softirq steal, not idle or iowait
-            "cpu1 100 0 40 3000 10 1 1 0 0 0\n"
+    text = ("cpu  300 10 100 5000 40 6 4 9 0 0\n"
+            "cpu0 200 10 60 2000 30 5 3 2 0 0\n"  # busy: user nice system irq softirq, not idle, iowait, steal
+            "cpu1 100 0 40 3000 10 1 1 7 0 0\n"
             "intr 12345 0 0\nctxt 999\n")
-    assert bench._busy_s_per_cpu(text) == pytest.approx([280 / ticks, 142 / ticks])
+    busy, stolen = bench._busy_s_per_cpu(text)
+    assert busy == pytest.approx([278 / ticks, 142 / ticks]) and stolen == pytest.approx(9 / ticks)
 
 
 def test_machine_load_subtracts_this_process_and_its_peers(monkeypatch):
-    samples = iter([(10.0, [100.0, 50.0], 7.0), (12.0, [101.8, 51.0], 8.2)])  # wall s, busy s per CPU, ours
+    samples = iter([(10.0, ([100.0, 50.0], 3.0), 7.0),  # wall s, (busy s per CPU, stolen s), ours
+                    (12.0, ([101.8, 51.0], 3.1), 8.2)])
     monkeypatch.setattr(bench.MachineLoad, "_sample", lambda self: next(samples))
     figures = bench.MachineLoad().figures()
     # over 2 s: CPU 0 busy 1.8 s, CPU 1 1.0 s; this process (and peers) 1.2 CPU s -> others 1.6 CPU s
@@ -29,6 +31,7 @@ def test_machine_load_subtracts_this_process_and_its_peers(monkeypatch):
     assert figures["cpu_busy"] == pytest.approx([0.9, 0.5])
     assert figures["this_process_cpus"] == pytest.approx(0.6)
     assert figures["other_cpus"] == pytest.approx(0.8)
+    assert figures["stolen_cpus"] == pytest.approx(0.05)
 
 
 def test_cpu_seconds_of_a_peer_process_count_as_ours():
