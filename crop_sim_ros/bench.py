@@ -14,6 +14,7 @@ import os
 import platform
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -114,7 +115,26 @@ def _season_weather(days: int, n_fields: int, seed: int) -> list[np.ndarray]:
             rng.uniform(2, 9, (days, n_fields))]
 
 
-def bench_model(n_fields: int, repeats: int = 3, seed: int = 0, seasons: int = 1) -> float:
+class Rate(NamedTuple):
+    """A throughput: per second of wall time, and per second of this process's CPU time (threads included;
+    on a shared machine the second holds better: time slices given to other processes do not count)."""
+
+    per_s: float
+    per_cpu_s: float
+
+
+def best_rate(run_once, work: float, repeats: int) -> Rate:
+    """The best of ``repeats`` calls of ``run_once()`` (each doing ``work`` units), by wall and by CPU time."""
+    wall, cpu = np.inf, np.inf
+    for _ in range(repeats):
+        start, start_cpu = time.perf_counter(), time.process_time()
+        run_once()
+        wall = min(wall, time.perf_counter() - start)
+        cpu = min(cpu, time.process_time() - start_cpu)
+    return Rate(work / wall, work / max(cpu, 1e-9))
+
+
+def bench_model(n_fields: int, repeats: int = 3, seed: int = 0, seasons: int = 1) -> Rate:
     """Best-of-``repeats`` field-days per second of the array path for ``n_fields`` over ``seasons``
     seasons (several for a small batch: long enough for the load figures)."""
     library = zhao2019_library()
@@ -125,18 +145,17 @@ def bench_model(n_fields: int, repeats: int = 3, seed: int = 0, seasons: int = 1
     weather = _season_weather(SEASON_DAYS, n_fields, seed)
     days = [DailyWeather(*(w[d] for w in weather)) for d in range(SEASON_DAYS)]
     irrigation = np.full(n_fields, 5.0)
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
+
+    def run_once():
         for _ in range(seasons):
             state = initial_state(params)
             for day in days:
                 state, _ = step(params, state, day, irrigation)
-        best = min(best, time.perf_counter() - start)
-    return seasons * n_fields * SEASON_DAYS / best
+
+    return best_rate(run_once, seasons * n_fields * SEASON_DAYS, repeats)
 
 
-def bench_scalar(repeats: int = 3, seed: int = 0, seasons: int = 1) -> float:
+def bench_scalar(repeats: int = 3, seed: int = 0, seasons: int = 1) -> Rate:
     """Best-of-``repeats`` field-days per second of the one-field scalar path over ``seasons`` seasons."""
     library = zhao2019_library()
     params = field_parameters(library.species("potato"), library.cultivar("potato", "Russet Burbank"),
@@ -144,15 +163,14 @@ def bench_scalar(repeats: int = 3, seed: int = 0, seasons: int = 1) -> float:
     weather = _season_weather(SEASON_DAYS, 1, seed)
     days = [DailyWeather(*(float(w[d, 0]) for w in weather)) for d in range(SEASON_DAYS)]
     one_field = scalar_parameters(params)
-    best = np.inf
-    for _ in range(repeats):
-        start = time.perf_counter()
+
+    def run_once():
         for _ in range(seasons):
             state = scalar_state(initial_state(params))
             for day in days:
                 state, _ = step(one_field, state, day, 5.0, xp=SCALAR_MATH)
-        best = min(best, time.perf_counter() - start)
-    return seasons * SEASON_DAYS / best
+
+    return best_rate(run_once, seasons * SEASON_DAYS, repeats)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -161,17 +179,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model-only", action="store_true", help="skip the environment benchmarks")
 
 
-def figure_line(label: str, value: float, unit: str, load: MachineLoad) -> str:
-    """One printed figure, with the load during its measurement."""
-    return f"  {label:<48} {value:>12,.0f} {unit}   ({load.summary()})"
+def figure_line(label: str, rate: Rate, unit: str, load: MachineLoad) -> str:
+    """One printed figure, per second and per CPU-second, with the load during its measurement."""
+    return (f"  {label:<48} {rate.per_s:>11,.0f} {unit}/s, {rate.per_cpu_s:>11,.0f} per CPU-s   "
+            f"({load.summary()})")
 
 
-def measured(label: str, measure, unit: str = "field-days/s", echo=print) -> float:
-    """Run ``measure()``, print its figure with the load during the measurement; return the figure."""
+def measured(label: str, measure, unit: str = "field-days", echo=print) -> Rate:
+    """Run ``measure()`` (a :class:`Rate`), print it with the load during the measurement; return it."""
     load = MachineLoad()
-    value = measure()
-    echo(figure_line(label, value, unit, load))
-    return value
+    rate = measure()
+    echo(figure_line(label, rate, unit, load))
+    return rate
 
 
 def run(args: argparse.Namespace) -> int:

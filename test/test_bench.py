@@ -57,7 +57,7 @@ def test_bench_prints_the_cpu_model_and_the_load(capsys):
     assert main(["bench", "--model-only", "--fields", "2000", "--repeats", "1"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith(f"machine: {model}, {os.cpu_count()} CPUs") and "load average" in lines[0]
-    figures = [line for line in lines if "field-days/s" in line]
+    figures = [line for line in lines if "field-days/s" in line and "per CPU-s" in line]
     assert len(figures) == 3
     for line in figures:
         assert "other processes" in line or "too short to measure the load" in line, line
