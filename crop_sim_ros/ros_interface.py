@@ -30,6 +30,10 @@ Name                                 Type                           Content
                                                                     (lockstep): one round trip per day
 ``~/irrigation_status``              diagnostic_msgs/DiagnosticStatus  each command's fate: level OK
                                                                     (accepted) or ERROR (rejected, why)
+``~/status``                         diagnostic_msgs/DiagnosticStatus  the node's state and counters: days
+                                                                    without a command, commands received /
+                                                                    accepted / rejected, season-log rows
+                                                                    written / lost (level WARN, ERROR)
 ==================================== ============================== ==========================================
 
 ``day`` is the number of days since sowing of the state the message describes (0 after a reset); the
@@ -39,9 +43,12 @@ values in order with their units, e.g. ``day[d],biomass_t_ha[t/ha]``. Values tha
 equal the observation exactly.
 
 QoS (explicit, see the constants below): the state topics (observation, biomass, paw, weather,
-step_result, /clock) are reliable + transient_local with depth 1, so a subscriber that joins late still
-gets the latest day. Commands and their status are reliable + volatile, depth 10 (a command is for one
-day; a late-joining simulator must not apply an old one).
+step_result, status) are reliable + transient_local with depth 1, so a subscriber that joins late still
+gets the latest day. ``/clock`` has the QoS of ROS time sources (best effort, volatile, depth 1: what rclpy's
+and rclcpp's ``use_sim_time`` subscribe with), so a node that starts later reads farm time from the next
+step on. Commands and their status are reliable + volatile (a command is for one day; a late-joining
+simulator must not apply an old one); the simulator's command subscriptions keep all messages, so a burst
+is queued, never overwritten; clients publish with depth 10 (or keep-all for bursts of their own).
 """
 
 from __future__ import annotations
@@ -71,6 +78,7 @@ STEP_RESULT_TOPIC = "step_result"
 IRRIGATION_TOPIC = "irrigation"
 IRRIGATION_STEP_TOPIC = "irrigation_step"
 IRRIGATION_STATUS_TOPIC = "irrigation_status"
+STATUS_TOPIC = "status"
 CLOCK_TOPIC = "/clock"
 
 # State topics: the latest day survives for late subscribers.
@@ -79,6 +87,16 @@ STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=Rel
 # Commands and command status: every message matters, none is replayed to a late joiner.
 COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
+# The simulator's command subscriptions: keep every command until the node takes it. With depth 10 a burst
+# was overwritten while the node was busy (90 of 1,000 commands arrived); keep-all readers acknowledge at
+# once, so a publisher's own depth-10 queue empties as fast as it fills.
+COMMAND_SUBSCRIPTION_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                                      durability=DurabilityPolicy.VOLATILE)
+# /clock: what ROS time sources subscribe with (rclpy's TimeSource and rclcpp's ClockQoS: best effort,
+# volatile, depth 1). A transient-local publisher gave such a subscriber nothing more: it still read 0 until
+# the next step.
+CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT,
+                       durability=DurabilityPolicy.VOLATILE)
 # What a reader that must see every day (agent, bridge) uses on the state topics: reliable, volatile (no
 # replay of a previous season's last day), a queue deep enough for a burst.
 READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
@@ -107,6 +125,11 @@ STEP_RESULT_LABELS = ("episode[1]", "day[d]", "irrigation[mm]", "reward[1]", "te
 IRRIGATION_LABELS = ("day[d]", "irrigation[mm]", "episode[1]")
 
 STATUS_NAME = "crop_sim/irrigation"
+NODE_STATUS_NAME = "crop_sim/status"
+# ~/status values: counters are whole numbers, season_ended is "true"/"false", the others are text.
+NODE_STATUS_COUNTERS = ("episode", "day", "days_without_command", "commands_received", "commands_accepted",
+                        "commands_rejected", "log_rows_written", "log_rows_lost")
+NODE_STATUS_KEYS = NODE_STATUS_COUNTERS + ("mode", "season_ended", "log_path", "log_error")
 
 
 def _layout(message, labels) -> None:
@@ -192,3 +215,23 @@ def summary_json(summary: dict) -> str:
             return None
         return v
     return json.dumps({k: clean(v) for k, v in summary.items()}, separators=(",", ":"))
+
+
+def node_status_message(level: bytes, text: str, values: dict) -> DiagnosticStatus:
+    """The node's ~/status: ``level`` one of DiagnosticStatus.OK / WARN / ERROR, ``values`` every key of
+    NODE_STATUS_KEYS (counters as whole numbers, season_ended as a bool)."""
+    def text_of(value):
+        return ("true" if value else "false") if isinstance(value, bool) else str(value)
+    return DiagnosticStatus(level=level, name=NODE_STATUS_NAME, message=text, hardware_id="",
+                            values=[KeyValue(key=key, value=text_of(values[key])) for key in NODE_STATUS_KEYS])
+
+
+def node_status_values(message: DiagnosticStatus) -> dict:
+    """~/status -> {"level": 0 OK / 1 WARN / 2 ERROR, "message", and every key of NODE_STATUS_KEYS}."""
+    values = {kv.key: kv.value for kv in message.values}
+    out = {"level": message.level[0] if isinstance(message.level, bytes) else int(message.level),
+           "message": message.message, **{key: values.get(key, "") for key in NODE_STATUS_KEYS}}
+    for key in NODE_STATUS_COUNTERS:
+        out[key] = int(values.get(key, "-1"))
+    out["season_ended"] = values.get("season_ended") == "true"
+    return out

@@ -1,4 +1,5 @@
-"""Helpers of the ROS tests (test_ros_*.py): isolation, node processes, a private rclpy context per test.
+"""Helpers of the ROS tests (test_ros_*.py): isolation, node processes, a private rclpy context per test, and
+the simulator's clients that the tests share (connect, step_client, raw_step, set_parameter, status_reader).
 
 Isolation: importing this module gives the test process its own ROS_DOMAIN_ID (from the pid, so pytest-xdist
 workers differ) and keeps discovery on this machine; child processes inherit both. Every node a test starts
@@ -19,6 +20,17 @@ from crop_agent_ros.ros_process import NodeProcess, isolated_ros_env, pick_domai
 os.environ["ROS_DOMAIN_ID"] = str(pick_domain_id(salt=int(os.environ.get("PYTEST_XDIST_WORKER", "gw0")[2:] or 0)))
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_LOCALHOST_ONLY", None)
+
+# rclpy reads the two variables above when a context starts; these imports start none
+from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
+from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
+from std_msgs.msg import Float64MultiArray  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from crop_agent_ros.ros_client import call, wait_for_service  # noqa: E402
+from crop_agent_ros.sim_client import SimClient  # noqa: E402
+from crop_sim_ros import ros_interface as ri  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 PARAMS_FILE = REPO / "config" / "farm_params.yaml"
@@ -50,3 +62,85 @@ def read_log(path: Path) -> list[dict]:
 
 def summary(response) -> dict:
     return json.loads(response.message)
+
+
+# --- clients of a simulator (these import rclpy) ------------------------------------------------------------
+
+def connect(ros, name, **kwargs) -> SimClient:
+    client = SimClient(ros.node, ros.executor, name, **kwargs)
+    client.connect(30)
+    return client
+
+
+def step_client(ros, name):
+    """A ~/step client that the simulator has surely discovered: wait for the service, then one idempotent
+    round trip (get_parameters) from the same node, whose endpoints all exist already. It keeps every response
+    (ri.SERVICE_CLIENT_QOS): with the default depth of 10, a client starved of CPU while another client of the
+    same simulator got more than 10 answers lost its own (the day was stepped, the call timed out: 5 of 60 runs
+    of the two-client test with the other core loaded, 0 of 25 with this QoS)."""
+    step = ros.node.create_client(Trigger, f"{name}/step", qos_profile=ri.SERVICE_CLIENT_QOS)
+    probe = ros.node.create_client(GetParameters, f"{name}/get_parameters")
+    wait_for_service(ros.executor, step, 30)
+    wait_for_service(ros.executor, probe, 30)
+    call(ros.executor, probe, GetParameters.Request(names=["mode"]))
+    ros.node.destroy_client(probe)
+    return step
+
+
+def set_parameter(ros, name, **values):
+    client = ros.node.create_client(SetParameters, f"{name}/set_parameters")
+    wait_for_service(ros.executor, client, 20)
+    request = SetParameters.Request()
+    for key, value in values.items():
+        if isinstance(value, str):
+            v = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
+        elif isinstance(value, float):
+            v = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+        else:
+            v = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=value)
+        request.parameters.append(Parameter(name=key, value=v))
+    response = call(ros.executor, client, request)
+    ros.node.destroy_client(client)
+    return response.results
+
+
+def raw_step(ros, name, timeout: float = 5.0) -> dict:
+    """One ~/step call (no command) from ``ros``'s node, while no other client steps this simulator.
+
+    A service request sent just after discovery can be lost in DDS (the server's reader had not yet matched
+    the new client's writer; ROS 2 services have no retry). So if no response comes, this looks at the
+    latched ~/step_result: the day did not advance -> the request was lost, send it again; it advanced -> the
+    response was lost, the step_result is the outcome. Never steps twice."""
+    cache = ros.__dict__.setdefault("_raw_step", {})
+    if name not in cache:
+        latest: list = []
+        ros.node.create_subscription(Float64MultiArray, f"{name}/step_result", lambda m: latest.append(list(m.data)),
+                                     ri.LATCHED_READER_QOS)
+        cache[name] = (step_client(ros, name), latest)
+        ros.spin_until(lambda: latest, 20, "the latched step result")
+    client, latest = cache[name]
+    before = latest[-1][:2]  # (episode, day)
+    for _ in range(5):
+        future = client.call_async(Trigger.Request())
+        try:
+            ros.spin_until(future.done, timeout, "the step response")
+            response = future.result()
+            return {"success": response.success, **json.loads(response.message)}
+        except TimeoutError:
+            client.remove_pending_request(future)
+            if latest[-1][:2] != before:  # stepped, the response was lost
+                r = latest[-1]
+                return {"success": True, "episode": int(r[0]), "day": int(r[1]), "irrigation_mm": r[2],
+                        "reward": r[3], "terminated": r[4] == 1.0, "truncated": r[5] == 1.0,
+                        "command_sequence": int(r[8])}
+    raise TimeoutError(f"no step of {name} after 5 attempts")
+
+
+def status_reader(ros, name) -> list[dict]:
+    """A list that fills with the simulator's ~/status (ri.node_status_values), the latest last; latched, so the
+    current status arrives at once."""
+    statuses: list[dict] = []
+    ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.STATUS_TOPIC}",
+                                 lambda m: statuses.append(ri.node_status_values(m)), ri.LATCHED_READER_QOS)
+    ros.spin_until(lambda: statuses, 20, "the latched ~/status")
+    return statuses

@@ -22,16 +22,15 @@ pytest.importorskip("rclpy")
 
 import ros_support  # noqa: E402  (sets ROS_DOMAIN_ID / discovery range before any context exists)
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
-from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
-from rcl_interfaces.srv import SetParameters  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import Float32MultiArray, Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from crop_agent_ros.ros_client import PrivateRos, call, wait_for_service  # noqa: E402
+from crop_agent_ros.ros_client import PrivateRos, call  # noqa: E402
 from crop_agent_ros.ros_process import NodeProcess, _shm_files_of, clean_dead_ports, isolated_ros_env  # noqa: E402
-from crop_agent_ros.sim_client import SimClient, SimError  # noqa: E402
+from crop_agent_ros.sim_client import SimError  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
+from ros_support import connect, raw_step, set_parameter, step_client  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -50,46 +49,6 @@ def ros():
     client = PrivateRos(f"test_client_{uuid.uuid4().hex[:8]}")
     yield client
     client.close()
-
-
-def connect(ros, name, **kwargs) -> SimClient:
-    client = SimClient(ros.node, ros.executor, name, **kwargs)
-    client.connect(30)
-    return client
-
-
-def step_client(ros, name):
-    """A ~/step client that the simulator has surely discovered: wait for the service, then one idempotent
-    round trip (get_parameters) from the same node, whose endpoints all exist already. It keeps every response
-    (ri.SERVICE_CLIENT_QOS): with the default depth of 10, a client starved of CPU while another client of the
-    same simulator got more than 10 answers lost its own (the day was stepped, the call timed out: 5 of 60 runs
-    of the two-client test with the other core loaded, 0 of 25 with this QoS)."""
-    from rcl_interfaces.srv import GetParameters
-
-    step = ros.node.create_client(Trigger, f"{name}/step", qos_profile=ri.SERVICE_CLIENT_QOS)
-    probe = ros.node.create_client(GetParameters, f"{name}/get_parameters")
-    wait_for_service(ros.executor, step, 30)
-    wait_for_service(ros.executor, probe, 30)
-    call(ros.executor, probe, GetParameters.Request(names=["mode"]))
-    ros.node.destroy_client(probe)
-    return step
-
-
-def set_parameter(ros, name, **values):
-    client = ros.node.create_client(SetParameters, f"{name}/set_parameters")
-    wait_for_service(ros.executor, client, 20)
-    request = SetParameters.Request()
-    for key, value in values.items():
-        if isinstance(value, str):
-            v = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
-        elif isinstance(value, float):
-            v = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
-        else:
-            v = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=value)
-        request.parameters.append(Parameter(name=key, value=v))
-    response = call(ros.executor, client, request)
-    ros.node.destroy_client(client)
-    return response.results
 
 
 # --- a season grown by two processes ------------------------------------------------------------------------
@@ -112,6 +71,7 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
                                          lambda m: got["forecast"].append(list(m.data)), ri.READER_QOS),
             ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
                                          lambda m: got["result"].append(list(m.data)), ri.READER_QOS),
+            ros.node.create_subscription(Clock, "/clock", lambda m: got["clock"].append(m.clock.sec), ri.CLOCK_QOS),
         ]
         ros.spin_until(lambda: all(s.get_publisher_count() >= 1 for s in subs), 30, "the simulator's topics")
         agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name="agent_node",
@@ -156,16 +116,15 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
         days_seen = [r[1] for r in got["result"] if r[0] == episode]
         assert days_seen == sorted(days_seen) and len(days_seen) > season["days"] // 2
 
-        # a late subscriber (transient local) gets the latest day at once, /clock in farm time
-        late = {"obs": [], "clock": []}
-        ros.node.create_subscription(Float32MultiArray, f"{name}/observation",
-                                     lambda m: late["obs"].append(ri.observation_from_message(m)),
-                                     ri.LATCHED_READER_QOS)
-        ros.node.create_subscription(Clock, "/clock", lambda m: late["clock"].append(m), ri.LATCHED_READER_QOS)
-        ros.spin_until(lambda: late["obs"] and late["clock"], 10, "the latched observation and clock")
-        assert late["obs"][-1].tobytes() == final.tobytes()
+        # /clock in farm time, in day order; a late subscriber (transient local) gets the latest day at once
         expected = ri.sim_time(date(2000, 4, 1), season["days"]).sec
-        ros.spin_until(lambda: any(c.clock.sec == expected for c in late["clock"]), 10, "farm time on /clock")
+        ros.spin_until(lambda: got["clock"] and got["clock"][-1] == expected, 10, "farm time on /clock")
+        assert got["clock"] == sorted(got["clock"])
+        late = []
+        ros.node.create_subscription(Float32MultiArray, f"{name}/observation",
+                                     lambda m: late.append(ri.observation_from_message(m)), ri.LATCHED_READER_QOS)
+        ros.spin_until(lambda: late, 10, "the latched observation")
+        assert late[-1].tobytes() == final.tobytes()
     finally:
         if agent is not None:
             agent.stop()
@@ -173,38 +132,6 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
 
 
 # --- bad input ------------------------------------------------------------------------------------------------
-
-def raw_step(ros, name, timeout: float = 5.0) -> dict:
-    """One ~/step call (no command) from ``ros``'s node, while no other client steps this simulator.
-
-    A service request sent just after discovery can be lost in DDS (the server's reader had not yet matched
-    the new client's writer; ROS 2 services have no retry). So if no response comes, this looks at the
-    latched ~/step_result: the day did not advance -> the request was lost, send it again; it advanced -> the
-    response was lost, the step_result is the outcome. Never steps twice."""
-    cache = ros.__dict__.setdefault("_raw_step", {})
-    if name not in cache:
-        latest: list = []
-        ros.node.create_subscription(Float64MultiArray, f"{name}/step_result", lambda m: latest.append(list(m.data)),
-                                     ri.LATCHED_READER_QOS)
-        cache[name] = (step_client(ros, name), latest)
-        ros.spin_until(lambda: latest, 20, "the latched step result")
-    client, latest = cache[name]
-    before = latest[-1][:2]  # (episode, day)
-    for _ in range(5):
-        future = client.call_async(Trigger.Request())
-        try:
-            ros.spin_until(future.done, timeout, "the step response")
-            response = future.result()
-            return {"success": response.success, **json.loads(response.message)}
-        except TimeoutError:
-            client.remove_pending_request(future)
-            if latest[-1][:2] != before:  # stepped, the response was lost
-                r = latest[-1]
-                return {"success": True, "episode": int(r[0]), "day": int(r[1]), "irrigation_mm": r[2],
-                        "reward": r[3], "terminated": r[4] == 1.0, "truncated": r[5] == 1.0,
-                        "command_sequence": int(r[8])}
-    raise TimeoutError(f"no step of {name} after 5 attempts")
-
 
 def test_bad_commands_are_rejected_and_never_applied(shared_sim, ros):
     _, name, log = shared_sim
@@ -382,12 +309,18 @@ def test_command_racing_step_is_applied_exactly_once_to_its_day(shared_sim):
                 publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation", ri.COMMAND_QOS)
                 ros.spin_until(lambda: publisher.get_subscription_count() >= 1, 20, "the command subscriber")
                 rng = np.random.default_rng(0)
+                sent = 0
                 while not stop.is_set():
                     if not flowing.is_set() and any(a["accepted"] for a in acks):
                         flowing.set()  # commands are accepted and acknowledged: the stepper may start
                     day = current["day"] + int(rng.integers(0, 2))
                     publisher.publish(ri.irrigation_command(day, float(rng.integers(1, 100))))
-                    ros.executor.spin_once(timeout_sec=0.0005)
+                    sent += 1
+                    # the next command once this one is answered: one in flight, racing the steps. (The simulator
+                    # keeps every command: sent faster than it takes them, they would queue and all come late.)
+                    answered = time.monotonic() + 0.05
+                    while len(acks) < sent and time.monotonic() < answered:
+                        ros.executor.spin_once(timeout_sec=0.005)
                 end = time.monotonic() + 0.3  # collect the last acknowledgements
                 while time.monotonic() < end:
                     ros.executor.spin_once(timeout_sec=0.05)

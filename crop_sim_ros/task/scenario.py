@@ -2,7 +2,8 @@
 
 A scenario is a small YAML file in ``crop_sim_ros/task/scenarios/`` (package data) read into a frozen
 :class:`Scenario`; :func:`get_scenario` finds one by name. Weather files are named relative to the data
-directory (``data_dir``; by default ``../shared/data`` next to the repository, never copied into it).
+directory (``data_dir``; by default :func:`default_data_dir`: ``$CROP_SIM_DATA_DIR``, else the ``shared/data``
+beside the checkout, never copied into it).
 
 Weather sources (``weather.kind``):
 
@@ -47,6 +48,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 from dataclasses import dataclass, fields, replace
 from datetime import date
 from pathlib import Path
@@ -62,8 +64,10 @@ from ..weather.csv_readers import read_plain_csv
 from .layout import EXTENDED, PAPER, ObservationLayout
 from .terms import Economics, FarmLimits
 
-# ../shared/data next to the repository root (crop_sim_ros/task/scenario.py -> parents[2] is the root).
-DEFAULT_DATA_DIR = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+# The environment variable that names the reference data directory (see default_data_dir).
+DATA_DIR_ENV = "CROP_SIM_DATA_DIR"
+# crop_sim_ros/task/scenario.py -> parents[1] is the package directory.
+PACKAGE_DIR = Path(__file__).resolve().parents[1]
 SCENARIO_DIR = Path(__file__).with_name("scenarios")
 WEATHER_KINDS = ("generator", "file", "seasons", "mixture")
 WEATHER_FORMATS = ("agweathernet", "dssat", "csv")
@@ -259,7 +263,7 @@ class Scenario:
 
     @property
     def resolved_data_dir(self) -> Path:
-        return DEFAULT_DATA_DIR if self.data_dir is None else Path(self.data_dir)
+        return default_data_dir() if self.data_dir is None else Path(self.data_dir)
 
     def field_parameters(self, water_stress: bool = True) -> FieldParameters:
         """The model parameters of one field (UnknownNameError for an unknown crop, cultivar or soil)."""
@@ -282,7 +286,8 @@ class Scenario:
             path = self.resolved_data_dir / path
         if not path.is_file():
             raise FileNotFoundError(f"scenario {self.name!r}: weather file {path} not found (data directory "
-                                    f"{self.resolved_data_dir}; pass data_dir=... to point elsewhere)")
+                                    f"{self.resolved_data_dir}; point elsewhere with data_dir=..., the sim node's "
+                                    f"data_dir parameter or the environment variable {DATA_DIR_ENV})")
         return path
 
     def load_seasons(self) -> list[WeatherSeries]:
@@ -311,6 +316,38 @@ class Scenario:
             series = series.window(series.start, self.max_season_days)
         needed = TASK_WEATHER_VARIABLES + (("tavg_degc",) if self.observe_measured_tavg else ())
         return series.with_fao56_fills().require(needed)
+
+
+def find_data_dir(environment_value: str | None, cwd: Path | None, package_dir: Path) -> Path | None:
+    """The reference data directory when no ``data_dir`` is given, or None if none is found:
+
+    1. ``environment_value`` (the variable ``CROP_SIM_DATA_DIR``), if set and not empty;
+    2. the checkout's ``../shared/data`` seen from ``cwd``: the first ``<ancestor>/shared/data`` directory walking
+       up from ``cwd`` (a source checkout, or a colcon workspace inside the tree that holds ``shared/``);
+    3. the same walking up from ``package_dir`` (a source checkout, an editable or a venv install inside it).
+
+    Steps 1 and 2 are what finds the data from an install outside the checkout (a colcon build puts the package
+    in ``install/crop_sim_ros/lib/python3.11/site-packages``, far from ``shared/``). ``cwd`` None: skipped."""
+    if environment_value:
+        return Path(environment_value).expanduser()
+    for start in (cwd, package_dir) if cwd is not None else (package_dir,):
+        for ancestor in (start, *start.parents):
+            candidate = ancestor / "shared" / "data"
+            if candidate.is_dir():
+                return candidate
+    return None
+
+
+def default_data_dir() -> Path:
+    """Where scenario weather files are found when no ``data_dir`` is given (:func:`find_data_dir` from the
+    environment, the current directory and this package's location). If nothing is found: ``../shared/data``
+    beside the package's parent directory, which the error of a missing weather file names."""
+    try:
+        cwd = Path.cwd()
+    except OSError:  # the current directory was removed
+        cwd = None
+    found = find_data_dir(os.environ.get(DATA_DIR_ENV), cwd, PACKAGE_DIR)
+    return found if found is not None else PACKAGE_DIR.parent.parent / "shared" / "data"
 
 
 @functools.lru_cache(maxsize=32)

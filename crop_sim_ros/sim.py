@@ -1,0 +1,662 @@
+"""The simulator node's class. Run it with ``sim_node`` (:mod:`crop_sim_ros.sim_node`, whose docstring describes
+the day protocol, the season log, stopping and the parameters)."""
+
+from __future__ import annotations
+
+import difflib
+import math
+import os
+import re
+import socket
+import threading
+from collections import deque
+from dataclasses import dataclass, fields, replace
+from datetime import date, datetime, timedelta, timezone
+from pathlib import Path
+
+import numpy as np
+import rclpy.parameter
+import yaml
+from diagnostic_msgs.msg import DiagnosticStatus
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
+                                SetParametersResult)
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Float32MultiArray, Float64MultiArray
+from std_srvs.srv import Trigger
+
+from . import ros_interface as ri
+from .season_log import SeasonLog, log_path_problem
+from .sim_node import MODES, NODE_NAME, PARAMETERS, ParameterSpec
+from .task import IrrigationEnv, ObservationNoise, Scenario, get_scenario, load_scenario
+
+# Parameters that define the environment (a change rebuilds it at the next reset).
+ENV_PARAMETERS = ("scenario", "data_dir", "crop", "cultivar", "soil", "co2_ppm", "noise_scale",
+                  "irrigation_cost_per_mm")
+# Parameters rclpy itself reads from the command line (not unknown, though not in PARAMETERS).
+RCLPY_PARAMETERS = ("use_sim_time", "start_type_description_service")
+# What the top level of a scenario YAML may hold (Scenario's fields, and ``base``: see crop_sim_ros.task.scenario).
+SCENARIO_FILE_FIELDS = frozenset(f.name for f in fields(Scenario) if f.name != "data_dir") | {"base"}
+SCENARIO_FILE_MAX_BYTES = 1 << 20  # far more than any scenario YAML; a bigger file is refused unread
+REFUSAL_MAX_CHARS = 400
+_QUOTED = re.compile(r"'(?:[^'\\\n]|\\.)*'|\"(?:[^\"\\\n]|\\.)*\"")
+STATUS_PERIOD_S = 1.0  # ~/status: counters that changed are published at most this late
+
+
+class StartupError(RuntimeError):
+    """The node cannot start with its parameters (unknown scenario or crop, unreadable weather, ...)."""
+
+
+class ScenarioFileError(ValueError):
+    """A scenario file that is not a scenario YAML (the message names the file and what is wrong)."""
+
+
+def one_line(error: BaseException | str) -> str:
+    """An error as one line of text (with its type, unless it is plain text or one of this module's errors)."""
+    text = (str(error) if isinstance(error, (str, StartupError, ScenarioFileError))
+            else f"{type(error).__name__}: {error}")
+    return " ".join(text.split())
+
+
+def _descriptor(spec: ParameterSpec) -> ParameterDescriptor:
+    kind = {str: ParameterType.PARAMETER_STRING, int: ParameterType.PARAMETER_INTEGER,
+            float: ParameterType.PARAMETER_DOUBLE}[type(spec.default)]
+    descriptor = ParameterDescriptor(type=kind, description=spec.description,
+                                     additional_constraints=spec.constraints)
+    if spec.low is not None and kind == ParameterType.PARAMETER_DOUBLE:
+        descriptor.floating_point_range = [FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high),
+                                                              step=0.0)]
+    elif spec.low is not None:
+        descriptor.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)]
+    return descriptor
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    scenario: str
+    data_dir: str
+    crop: str
+    cultivar: str
+    soil: str
+    co2_ppm: float
+    noise_scale: float
+    irrigation_cost_per_mm: float
+
+
+# --- scenarios: built from parameters; a refusal about a file never quotes what the file holds -------------
+
+def _is_file_scenario(name: str) -> bool:
+    return name.endswith((".yaml", ".yml")) or os.sep in name
+
+
+def scenario_file_problem(path: Path) -> str | None:
+    """Why ``path`` is not a scenario YAML file, or None. The reason names the file and what is wrong, never
+    its contents: any peer on the domain can set the ``scenario`` parameter to any readable file, and the
+    refusal goes back to that peer."""
+    if not path.is_file():
+        return f"scenario file {path} does not exist" if not path.exists() else f"scenario {path} is not a file"
+    size = path.stat().st_size
+    if size > SCENARIO_FILE_MAX_BYTES:
+        return f"scenario file {path}: {size} bytes, more than a scenario YAML holds ({SCENARIO_FILE_MAX_BYTES})"
+    try:
+        values = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        return f"scenario file {path}: not UTF-8 text"
+    except OSError as error:
+        return f"scenario file {path}: cannot be read ({error.strerror})"
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        return f"scenario file {path}: not valid YAML{where}"
+    known = ", ".join(sorted(SCENARIO_FILE_FIELDS))
+    if not isinstance(values, dict):
+        kind = {str: "text", list: "a list", type(None): "nothing"}.get(type(values), "a single value")
+        return f"scenario file {path} is not a scenario: it holds {kind}, not a mapping of the fields {known}"
+    unknown = [key for key in values if not (isinstance(key, str) and key in SCENARIO_FILE_FIELDS)]
+    if unknown:
+        near = sorted({match for key in unknown if isinstance(key, str)
+                       for match in difflib.get_close_matches(key, SCENARIO_FILE_FIELDS, n=1, cutoff=0.8)})
+        hint = f" (did you mean {', '.join(near)}?)" if near else ""
+        return (f"scenario file {path}: {len(unknown)} of its {len(values)} top-level fields are not scenario "
+                f"fields{hint}; known: {known}")
+    return None
+
+
+def without_file_values(text: str) -> str:
+    """``text`` on one line, every quoted value replaced by '…', at most REFUSAL_MAX_CHARS long: an error
+    about a scenario file that may be told to peers (the field at fault and why, not the value it holds)."""
+    text = _QUOTED.sub("'…'", one_line(text))
+    return text if len(text) <= REFUSAL_MAX_CHARS else text[:REFUSAL_MAX_CHARS - 1] + "…"
+
+
+def scenario_error(config: EnvConfig, error: BaseException) -> str:
+    """The refusal of ``config``'s scenario, one line (see :func:`without_file_values` for file scenarios)."""
+    name = config.scenario.strip()
+    if isinstance(error, ScenarioFileError):
+        return one_line(error)
+    if _is_file_scenario(name):
+        path = str(Path(name).expanduser())
+        text = str(error).removeprefix(f"{path}: ")  # load_scenario names the file first: once is enough
+        return f"scenario file {path}: {without_file_values(f'{type(error).__name__}: {text}')}"
+    return f"scenario {name!r}: {one_line(error)}"
+
+
+def build_scenario(config: EnvConfig) -> Scenario:
+    """The Scenario of ``config``: a built-in name or YAML path, with the overrides applied and the crop,
+    cultivar and soil looked up (UnknownNameError, ValueError or FileNotFoundError on bad values; for a file that
+    is not a scenario YAML, ScenarioFileError first)."""
+    data_dir = config.data_dir or None
+    name = config.scenario.strip()
+    if not name:
+        raise ValueError("empty name")
+    if _is_file_scenario(name):
+        path = Path(name).expanduser()
+        problem = scenario_file_problem(path)
+        if problem:
+            raise ScenarioFileError(problem)
+        scenario = load_scenario(path, data_dir)
+        for season in scenario.weather.seasons:
+            scenario.season_path(season)
+    else:
+        scenario = get_scenario(name, data_dir)
+    changes = {key: value for key, value in (("crop", config.crop), ("cultivar", config.cultivar),
+                                             ("soil", config.soil)) if value}
+    if config.co2_ppm >= 0:
+        changes["co2_ppm"] = config.co2_ppm
+    if config.noise_scale != 1.0:
+        changes["noise"] = ObservationNoise(**{f.name: getattr(scenario.noise, f.name) * config.noise_scale
+                                               for f in fields(ObservationNoise)})
+    changes["irrigation_cost_per_mm"] = config.irrigation_cost_per_mm
+    scenario = replace(scenario, **changes)
+    scenario.field_parameters()  # UnknownNameError for an unknown crop, cultivar or soil
+    return scenario
+
+
+def default_log_path() -> Path:
+    ros_home = os.environ.get("ROS_HOME") or os.path.join(os.path.expanduser("~"), ".ros")
+    return Path(ros_home) / "crop_sim" / "season_log.csv"
+
+
+class SimNode(Node):
+    """See :mod:`crop_sim_ros.sim_node`."""
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs):
+        # no type-description service: one entity less for the executor to wait on per callback
+        overrides = list(kwargs.pop("parameter_overrides", None) or [])
+        overrides.append(rclpy.parameter.Parameter("start_type_description_service", value=False))
+        super().__init__(node_name, parameter_overrides=overrides, **kwargs)
+        self._log: SeasonLog | None = None
+        self._deferred: deque = deque()
+        try:
+            self._setup()
+        except BaseException:
+            self.destroy_node()  # a half-built node must not outlive the context (a hang at exit)
+            raise
+
+    def _setup(self) -> None:
+        self._lock = threading.RLock()
+        for name, spec in PARAMETERS.items():
+            self.declare_parameter(name, spec.default, _descriptor(spec))
+        self._warn_unknown_parameters()
+        values = self._values()
+        problem = self._problem(values, set(PARAMETERS))
+        if problem:
+            raise StartupError(problem)
+        self._env_config = self._config()
+        try:
+            self._env = IrrigationEnv(build_scenario(self._env_config))
+        except Exception as error:  # noqa: BLE001 - a broken weather file, ...: a start-up configuration error
+            raise StartupError(scenario_error(self._env_config, error)) from None
+        self._max_mm = float(self._env.scenario.max_irrigation_mm)
+        self._log_path = self._resolve_log_path()
+        self._log = self._open_log(self._log_path)
+        self._run_id = f"{socket.gethostname()}-{os.getpid()}-{datetime.now(timezone.utc):%Y%m%dT%H%M%S}"
+
+        # season bookkeeping (under self._lock)
+        self._episode = 0
+        self._day = 0
+        self._ended = True
+        self._end_reason = "no season yet"
+        self._return = 0.0
+        self._obs: np.ndarray | None = None
+        self._seed_used: int | None = None
+        self._info_season = -1
+        self._sowing: date = date(2000, 1, 1)
+        self._pending: tuple[int, float, int] | None = None  # (day, mm, sequence)
+        # counters of ~/status
+        self._sequence = 0  # commands received since the start (both command topics)
+        self._accepted = 0
+        self._rejected = 0
+        self._days_without_command = 0  # this season
+        self._log_rows_lost = 0
+        self._log_error = ""  # why the last row could not be written; "" once a row is written again
+        self._status_changed = True
+
+        # publishers (messages reused: publish() serialises at once)
+        self._pub_obs = self.create_publisher(Float32MultiArray, "~/" + ri.OBSERVATION_TOPIC, ri.STATE_QOS)
+        self._pub_biomass = self.create_publisher(Float64MultiArray, "~/" + ri.BIOMASS_TOPIC, ri.STATE_QOS)
+        self._pub_paw = self.create_publisher(Float64MultiArray, "~/" + ri.PAW_TOPIC, ri.STATE_QOS)
+        self._pub_today = self.create_publisher(Float64MultiArray, "~/" + ri.WEATHER_TODAY_TOPIC, ri.STATE_QOS)
+        self._pub_forecast = self.create_publisher(Float64MultiArray, "~/" + ri.WEATHER_FORECAST_TOPIC, ri.STATE_QOS)
+        self._pub_result = self.create_publisher(Float64MultiArray, "~/" + ri.STEP_RESULT_TOPIC, ri.STATE_QOS)
+        self._pub_clock = self.create_publisher(Clock, ri.CLOCK_TOPIC, ri.CLOCK_QOS)
+        self._pub_status = self.create_publisher(DiagnosticStatus, "~/" + ri.IRRIGATION_STATUS_TOPIC, ri.COMMAND_QOS)
+        self._pub_node_status = self.create_publisher(DiagnosticStatus, "~/" + ri.STATUS_TOPIC, ri.STATE_QOS)
+        self._msg_obs = ri.observation_message(np.zeros(ri.OBS_SIZE, np.float32))
+        self._msg_biomass = ri.float64_array(ri.BIOMASS_LABELS, (0, 0))
+        self._msg_paw = ri.float64_array(ri.PAW_LABELS, (0, 0))
+        self._msg_today = ri.float64_array(ri.WEATHER_TODAY_LABELS, [0] * 9)
+        self._msg_forecast = ri.float64_array(ri.WEATHER_FORECAST_LABELS, [0] * 9)
+        self._msg_result = ri.float64_array(ri.STEP_RESULT_LABELS, [0] * len(ri.STEP_RESULT_LABELS))
+
+        self.create_subscription(Float64MultiArray, "~/" + ri.IRRIGATION_TOPIC, self._on_irrigation,
+                                 ri.COMMAND_SUBSCRIPTION_QOS)
+        self.create_subscription(Float64MultiArray, "~/" + ri.IRRIGATION_STEP_TOPIC, self._on_irrigation_step,
+                                 ri.COMMAND_SUBSCRIPTION_QOS)
+        self.create_service(Trigger, "~/" + ri.STEP_SERVICE, self._on_step)
+        self.create_service(Trigger, "~/" + ri.RESET_SERVICE, self._on_reset)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+        self.create_timer(STATUS_PERIOD_S, self._on_status_timer)
+        self._timer = None
+        self._configure_timer()
+
+        ok, summary = self._reset()
+        if not ok:
+            raise StartupError(summary["error"])
+        scenario = self._env.scenario
+        files = (f", weather files from {scenario.resolved_data_dir}" if scenario.weather.kind != "generator"
+                 else "")
+        self.get_logger().info(f"ready: scenario {scenario.name!r}{files}, mode {self._mode()}, max irrigation "
+                               f"{self._max_mm:g} mm, log {self._log_path}")
+
+    # --- parameters --------------------------------------------------------------------------------------
+
+    def _values(self) -> dict:
+        return {name: self.get_parameter(name).value for name in PARAMETERS}
+
+    def _config(self, values: dict | None = None) -> EnvConfig:
+        values = values or self._values()
+        return EnvConfig(**{name: values[name] for name in ENV_PARAMETERS})
+
+    def _mode(self) -> str:
+        return self.get_parameter("mode").value
+
+    def _resolve_log_path(self, value: str | None = None) -> Path:
+        value = self.get_parameter("log_path").value if value is None else value
+        return Path(value).expanduser() if value else default_log_path()
+
+    def _warn_unknown_parameters(self) -> None:
+        # rclpy keeps this node's -p / --params-file values in _parameter_overrides (there is no public
+        # accessor); a value for a name that is never declared is otherwise dropped without a word
+        unknown = sorted(name for name in self._parameter_overrides
+                         if name not in PARAMETERS and name not in RCLPY_PARAMETERS
+                         and not name.startswith("qos_overrides."))
+        if unknown:
+            self.get_logger().warning(f"unknown parameter{'s' if len(unknown) > 1 else ''} "
+                                      f"{', '.join(unknown)} ignored; known: {', '.join(PARAMETERS)}")
+
+    def _problem(self, values: dict, changed: set[str]) -> str | None:
+        """Why the parameter values ``values`` (all of them, ``changed`` being the ones set now) are refused,
+        or None. Checked when they are set, so that a bad value is refused then, not at the next reset."""
+        if "mode" in changed and values["mode"] not in MODES:
+            return f"mode: {values['mode']!r} is not one of {', '.join(MODES)}"
+        co2 = values["co2_ppm"]
+        if "co2_ppm" in changed and not (co2 == -1.0 or 0.0 <= co2 <= 5000.0):
+            return f"co2_ppm: {co2} is neither -1 (the scenario's) nor in 0..5000 ppm"
+        for name in ("co2_ppm", "noise_scale", "irrigation_cost_per_mm", "days_per_second"):
+            if name in changed and not math.isfinite(values[name]):
+                return f"{name}: {values[name]} is not finite"
+        if changed & {*ENV_PARAMETERS, "weather_season"}:
+            config = self._config(values)
+            try:
+                scenario = build_scenario(config)
+            except Exception as error:  # noqa: BLE001 - reported to the caller, nothing stored
+                return scenario_error(config, error)
+            season, n_seasons = values["weather_season"], scenario.n_seasons
+            if season >= n_seasons:
+                return (f"weather_season: {season} is beyond the {n_seasons} season{'s' if n_seasons > 1 else ''} "
+                        f"of scenario {scenario.name!r} (0..{n_seasons - 1}, or -1 to draw one)")
+        if "log_path" in changed:
+            return log_path_problem(self._resolve_log_path(values["log_path"]))
+        return None
+
+    def _on_set_parameters(self, parameters) -> SetParametersResult:
+        changed = {p.name: p.value for p in parameters}
+        problem = self._problem({**self._values(), **changed}, set(changed))
+        if problem:
+            self.get_logger().warning(f"parameter change refused: {problem}")
+            return SetParametersResult(successful=False, reason=problem)
+        return SetParametersResult(successful=True)
+
+    def _after_set_parameters(self, parameters) -> None:
+        if any(p.name in ("mode", "days_per_second") for p in parameters):
+            self._configure_timer()
+            self._publish_status()
+
+    def _configure_timer(self) -> None:
+        if self._timer is not None:
+            self.destroy_timer(self._timer)
+            self._timer = None
+        if self._mode() == "free_running":
+            self._timer = self.create_timer(1.0 / self.get_parameter("days_per_second").value, self._on_tick)
+
+    # --- commands ----------------------------------------------------------------------------------------
+
+    def _check_command(self, values: list) -> tuple[str | None, bool]:
+        """(why this command [day, mm] or [day, mm, episode] is refused, or None; whether it is only a question
+        of timing: a past or future day, another episode, a season that ended)."""
+        day = values[0] if values else math.nan
+        mm = values[1] if len(values) > 1 else math.nan
+        if len(values) not in (2, 3):
+            return f"expected [day, mm] or [day, mm, episode], got {len(values)} values", False
+        if not (math.isfinite(day) and day == int(day)):
+            return f"day {day!r} is not a whole number", False
+        if len(values) == 3 and values[2] != self._episode:
+            return f"episode {values[2]!r} is not the current episode {self._episode}", True
+        if self._ended:
+            return f"the season has ended ({self._end_reason}); call ~/reset", True
+        if day < self._day:
+            return f"day {int(day)} is past: the current day is {self._day}", True
+        if day > self._day:
+            return f"day {int(day)} is in the future: the current day is {self._day}", True
+        if not math.isfinite(mm):
+            return f"irrigation {mm!r} mm is not a finite number", False
+        if mm < 0.0:
+            return f"irrigation {mm!r} mm is negative", False
+        if mm > self._max_mm:
+            return f"irrigation {mm!r} mm exceeds the limit of {self._max_mm:g} mm/day", False
+        return None, False
+
+    def _accept(self, values: list, and_step: bool = False) -> bool:
+        """Validate a command; if valid it becomes the day's pending command. Reports its fate on
+        ~/irrigation_status and logs refusals. Returns whether it was accepted."""
+        self._sequence += 1
+        sequence = self._sequence
+        day = values[0] if values else math.nan
+        mm = values[1] if len(values) > 1 else math.nan
+        problem, timing = self._check_command(values)
+        if problem is None and and_step and self._mode() != "lockstep":
+            problem, timing = "mode is free_running: the node steps by itself; use ~/irrigation", False
+        self._status_changed = True
+        if problem is None:
+            self._accepted += 1
+            self._pending = (self._day, float(mm), sequence)
+            text = (f"accepted {mm:g} mm for day {self._day} (episode {self._episode})"
+                    + (", stepping" if and_step else ""))
+        else:
+            self._rejected += 1
+            text = f"rejected: {problem}"
+            where = "irrigation_step" if and_step else "irrigation"
+            if timing:  # a command that came too late or too early: at most one log line a second
+                self.get_logger().warning(f"{where} command #{sequence} {values}: {text} (such rejections are "
+                                          "logged at most once a second; all are on ~/irrigation_status)",
+                                          throttle_duration_sec=1.0)
+            else:
+                self.get_logger().warning(f"{where} command #{sequence} {values}: {text}")
+        if problem is not None or not and_step:  # an accepted stepping command's fate is its ~/step_result
+            self._pub_status.publish(ri.status_message(problem is None, text, day, mm, sequence, self._day))
+        return problem is None
+
+    def _on_irrigation(self, message: Float64MultiArray) -> None:
+        with self._lock:
+            self._accept(list(message.data))
+
+    def _on_irrigation_step(self, message: Float64MultiArray) -> None:
+        """A command that also asks for the step: validated like ~/irrigation, then the day is stepped at once
+        (lockstep mode). One topic round trip per day instead of a command, its acknowledgement and a service
+        call; the outcome is on ~/step_result and ~/observation (and ~/irrigation_status if refused)."""
+        with self._lock:
+            if self._accept(list(message.data), and_step=True):
+                ok, summary = self._step(defer=True)
+                if not ok:
+                    self.get_logger().error(ri.summary_json(summary))
+
+    # --- step --------------------------------------------------------------------------------------------
+
+    def _on_step(self, request, response):
+        if self._mode() != "lockstep":
+            response.success = False
+            response.message = ri.summary_json({"error": "mode is free_running: the node steps by itself; set "
+                                                "mode:=lockstep to step by service", "episode": self._episode,
+                                                "day": self._day})
+            return response
+        response.success, summary = self._step(defer=True)
+        response.message = ri.summary_json(summary)
+        return response
+
+    def _on_tick(self) -> None:
+        if not self._ended:
+            ok, summary = self._step(free_running=True)
+            if not ok:
+                self.get_logger().error(ri.summary_json(summary))
+
+    def _step(self, defer: bool = False, free_running: bool = False) -> tuple[bool, dict]:
+        """Advance one day; (success, summary). The summary is a dict: callers that answer a service encode
+        it (JSON costs time the topic path does not need to spend)."""
+        with self._lock:
+            if self._ended:
+                return False, {"error": f"the season has ended ({self._end_reason}); call ~/reset",
+                               "episode": self._episode, "day": self._day}
+            day, obs_before = self._day, self._obs
+            if self._pending is not None and self._pending[0] == day:
+                _, mm, sequence = self._pending
+            else:
+                mm, sequence = 0.0, -1
+            self._pending = None
+            try:
+                obs, reward, terminated, truncated, info = self._env.step(mm)
+            except Exception as error:  # noqa: BLE001 - the environment refused: state unchanged
+                self.get_logger().error(f"step of day {day} failed: {error}")
+                return False, {"error": f"{type(error).__name__}: {error}", "episode": self._episode,
+                               "day": self._day}
+            terminated, truncated, reward = bool(terminated), bool(truncated), float(reward)
+            self._obs = obs
+            self._day = int(info["day"])
+            self._return = float(info["episode_return"])
+            if sequence < 0:
+                self._days_without_command += 1
+                self._status_changed = True
+                if free_running:  # in lockstep a step without a command is the caller's choice of 0 mm
+                    self.get_logger().warning(
+                        f"free running: day {day} of episode {self._episode} passed without a command (0 mm); "
+                        f"{self._days_without_command} of {day + 1} days so far (logged at most once a second; "
+                        "counted on ~/status)", throttle_duration_sec=1.0)
+            log_error = self._write_log_row(
+                {**self._log_common(day, obs_before),
+                 "command_sequence": sequence, "irrigation_mm": info["irrigation_applied_mm"], "reward": reward,
+                 "episode_return": info["episode_return"], "terminated": terminated, "truncated": truncated,
+                 **{k: info[k] for k in ("rain_mm", "runoff_mm", "drainage_mm", "transpiration_mm", "et0_mm",
+                                         "arid", "potential_yield_t_ha", "normalized_return")},
+                 "end_true_biomass_t_ha": info["true_biomass_t_ha"], "end_true_paw_mm": info["true_paw_mm"],
+                 "end_thermal_time_degc_d": info["thermal_time_degc_d"], "end_fsolar": info["fsolar"],
+                 "end_yield_t_ha": info["yield_t_ha"], "end_mature": info["mature"]}, day)
+            yield_t_ha = info["yield_t_ha"] if terminated else 0.0
+            self._publish(info["irrigation_applied_mm"], reward, terminated, truncated, yield_t_ha, sequence,
+                          defer=defer)
+            if terminated or truncated:
+                self._ended = True
+                self._end_reason = (f"crop mature on day {self._day}" if terminated
+                                    else f"weather ran out on day {self._day}")
+                self.get_logger().info(
+                    f"episode {self._episode} ended: {self._end_reason}, yield {yield_t_ha:.3f} t/ha, return "
+                    f"{self._return:.4f}; {self._days_without_command} of {self._day} days without a command")
+                self._publish_status()
+            summary = {"episode": self._episode, "day": self._day, "date": info["date"],
+                       "irrigation_mm": info["irrigation_applied_mm"], "reward": reward, "return": self._return,
+                       "terminated": terminated, "truncated": truncated, "yield_t_ha": yield_t_ha,
+                       "command_sequence": sequence, "observation": ri.observation_list(obs)}
+            if log_error:
+                summary["log_error"] = log_error
+            return True, summary
+
+    def _write_log_row(self, row: dict, day: int) -> str | None:
+        """Append the day's row to the season log; None, or why it could not be written (the day stands; the
+        caller is told, the failure is logged and counted on ~/status; the file keeps its last whole row)."""
+        try:
+            self._log.write(row)
+        except OSError as error:
+            self._log_rows_lost += 1
+            failing_before = bool(self._log_error)
+            self._log_error = (f"season log {self._log_path}: the row of episode {self._episode} day {day} was not "
+                               f"written ({error.strerror or error}); {self._log_rows_lost} row"
+                               f"{'s' if self._log_rows_lost > 1 else ''} lost so far")
+            self.get_logger().error(self._log_error + " (logged at most once a second; counted on ~/status)",
+                                    throttle_duration_sec=1.0)
+            self._status_changed = True
+            if not failing_before:
+                self._publish_status()
+            return self._log_error
+        if self._log_error:
+            self._log_error = ""
+            self.get_logger().info(f"season log {self._log_path} written again ({self._log_rows_lost} rows lost)")
+            self._publish_status()
+        return None
+
+    def _log_common(self, day: int, obs: np.ndarray) -> dict:
+        row = {"wall_time_utc": datetime.now(timezone.utc).isoformat(timespec="milliseconds"), "run_id": self._run_id,
+               "episode": self._episode, "scenario": self._env.scenario.name,
+               "seed": "" if self._seed_used is None else self._seed_used, "weather_season": self._info_season,
+               "day": day, "date": (self._sowing + timedelta(days=day)).isoformat()}
+        row.update({f"obs_{name}": float(value) for name, value in zip(ri.OBSERVATION_NAMES, obs)})
+        return row
+
+    # --- reset -------------------------------------------------------------------------------------------
+
+    def _on_reset(self, request, response):
+        response.success, summary = self._reset()
+        response.message = ri.summary_json(summary)
+        return response
+
+    def _open_log(self, path: Path) -> SeasonLog:
+        log = SeasonLog(path)
+        if log.repaired_bytes:
+            self.get_logger().warning(f"season log {path}: removed a torn last line ({log.repaired_bytes} bytes of a "
+                                      "row cut short, e.g. by a crash) before appending")
+        return log
+
+    def _reset(self) -> tuple[bool, dict]:
+        with self._lock:
+            values = self._values()
+            config = self._config(values)
+            env, log, log_path = self._env, self._log, self._log_path
+            try:
+                if config != self._env_config:
+                    try:
+                        env = IrrigationEnv(build_scenario(config))
+                    except Exception as error:  # noqa: BLE001 - reported below, as one line
+                        raise StartupError(scenario_error(config, error)) from None
+                wanted_log = self._resolve_log_path()
+                if wanted_log != self._log_path:
+                    log, log_path = self._open_log(wanted_log), wanted_log
+                seed, season = values["seed"], values["weather_season"]
+                options = {"season": season} if season >= 0 else None
+                obs, info = env.reset(seed=seed if seed >= 0 else None, options=options)
+            except Exception as error:  # noqa: BLE001 - the old season stays as it was
+                if log is not self._log:
+                    log.close()
+                message = f"reset failed, the current season is unchanged: {one_line(error)}"
+                self.get_logger().error(message)
+                return False, {"error": message, "episode": self._episode, "day": self._day}
+            if env is not self._env:
+                self._env, self._env_config = env, config
+                self._max_mm = float(env.scenario.max_irrigation_mm)
+            if log is not self._log:
+                self._log.close()
+                self._log, self._log_path = log, log_path
+            self._episode += 1
+            self._seed_used = seed if seed >= 0 else None
+            self._obs = obs
+            self._info_season = info["season"]
+            self._day = int(info["day"])
+            self._sowing = date.fromisoformat(info["date"])
+            self._ended = False
+            self._end_reason = ""
+            self._return = 0.0
+            self._pending = None
+            self._days_without_command = 0
+            self._publish(0.0, 0.0, False, False, 0.0, -1)
+            self._publish_status()
+            summary = {"episode": self._episode, "day": self._day, "date": info["date"],
+                       "scenario": env.scenario.name, "seed": self._seed_used, "weather_season": info["season"],
+                       "weather_source": info["weather_source"], "max_irrigation_mm": self._max_mm,
+                       "potential_yield_t_ha": info["potential_yield_t_ha"], "observation": ri.observation_list(obs)}
+            self.get_logger().info(f"episode {self._episode}: {env.scenario.name}, weather {info['weather_source']}, "
+                                   f"sown {info['date']}, seed {self._seed_used}")
+            return True, summary
+
+    # --- publishing --------------------------------------------------------------------------------------
+
+    def _publish(self, irrigation_mm: float, reward: float, terminated: bool, truncated: bool,
+                 yield_t_ha: float, sequence: int, defer: bool = False) -> None:
+        """Publish the current day: the observation and the step result at once; the other topics at once, or
+        (``defer``, when a client waits) right after this callback, so that the client waits less."""
+        self._flush_deferred()  # keep each topic in day order
+        self._msg_obs.data = self._obs
+        self._pub_obs.publish(self._msg_obs)
+        self._msg_result.data = [float(self._episode), float(self._day), float(irrigation_mm), float(reward),
+                                 float(terminated), float(truncated), float(yield_t_ha), float(self._return),
+                                 float(sequence)]
+        self._pub_result.publish(self._msg_result)
+        rest = (self._obs, self._day, self._sowing)
+        if defer and self.executor is not None:
+            self._deferred.append(rest)
+            self.executor.create_task(self._on_deferred)  # runs after this callback (and its response)
+        else:
+            self._publish_rest(*rest)
+
+    def _flush_deferred(self) -> None:
+        while self._deferred:
+            self._publish_rest(*self._deferred.popleft())
+
+    def _on_deferred(self) -> None:
+        with self._lock:
+            self._flush_deferred()
+
+    def _publish_rest(self, obs, day, sowing) -> None:
+        wide = obs.astype(np.float64).tolist()
+        self._msg_biomass.data = [float(day), wide[ri.OBS_BIOMASS]]
+        self._pub_biomass.publish(self._msg_biomass)
+        self._msg_paw.data = [float(day), wide[ri.OBS_PAW]]
+        self._pub_paw.publish(self._msg_paw)
+        self._msg_today.data = [float(day), *wide[ri.OBS_TODAY]]
+        self._pub_today.publish(self._msg_today)
+        self._msg_forecast.data = [float(day + 1), *wide[ri.OBS_FORECAST]]
+        self._pub_forecast.publish(self._msg_forecast)
+        self._pub_clock.publish(ri.clock_message(sowing, day))
+
+    def _on_status_timer(self) -> None:
+        if self._status_changed:
+            with self._lock:
+                self._publish_status()
+
+    def _publish_status(self) -> None:
+        """~/status now: level ERROR while the season log cannot be written, WARN after rows were lost or when
+        free-running days passed without a command this season, else OK."""
+        free_running = self._mode() == "free_running"
+        if self._log_error:
+            level, text = DiagnosticStatus.ERROR, self._log_error
+        elif self._log_rows_lost:
+            level, text = DiagnosticStatus.WARN, f"season log: {self._log_rows_lost} rows lost"
+        elif free_running and self._days_without_command:
+            level, text = DiagnosticStatus.WARN, (f"free running: {self._days_without_command} days of this season "
+                                                  "passed without a command")
+        else:
+            level, text = DiagnosticStatus.OK, "ok"
+        self._pub_node_status.publish(ri.node_status_message(level, text, {
+            "episode": self._episode, "day": self._day, "mode": self._mode(), "season_ended": self._ended,
+            "days_without_command": self._days_without_command, "commands_received": self._sequence,
+            "commands_accepted": self._accepted, "commands_rejected": self._rejected,
+            "log_path": self._log_path, "log_rows_written": self._log.rows_written,
+            "log_rows_lost": self._log_rows_lost, "log_error": self._log_error}))
+        self._status_changed = False
+
+    def destroy_node(self):
+        if self._deferred and self.context.ok():
+            self._flush_deferred()  # the last day's topics, which the executor did not get to
+        if self._log is not None and not self._log.closed:
+            self._log.close()
+            lost = getattr(self, "_log_rows_lost", 0)
+            self.get_logger().info(f"season log {self._log.path} closed: {self._log.rows_written} rows written by "
+                                   f"this run" + (f", {lost} lost" if lost else ""))
+        return super().destroy_node()
