@@ -274,9 +274,11 @@ def _evaluate(requests: list[_Request]) -> list[_Evaluation]:
     stepped = joined[0]
     state = m.initial_state(_column_parameters(contexts, slot[:stepped]))
     day_params = _prefix(params, per_column, stepped)
+    weather_until = 0
     for d in range(days):
         k = joined[d]
         if k > stepped:  # columns that leave their base's trajectory today, from its state today
+            weather_until = d  # gather the weather again, for the grown batch
             arriving = source[stepped:k]
             if d in joined_from_outside:
                 state = m.CropState(*(np.concatenate((a, np.concatenate((a, np.zeros(total - a.size, a.dtype), o))
@@ -285,9 +287,12 @@ def _evaluate(requests: list[_Request]) -> list[_Evaluation]:
                 state = m.CropState(*(np.concatenate((a, a[arriving])) for a in state))
             stepped = k
             day_params = _prefix(params, per_column, k)
+        if d >= weather_until:  # the batch's weather, gathered for up to JOIN_BLOCK_DAYS days at once
+            weather_from, weather_until = d, min(d + JOIN_BLOCK_DAYS, days)
+            batch_weather = weather[weather_from:weather_until][:, :, slot[:k]]
         if recorded:
             history.append([a[record_at] for a in state])
-        state, _ = m.step(day_params, state, m.DailyWeather(*weather[d][:, slot[:k]]), irrigation[d, :k])
+        state, _ = m.step(day_params, state, m.DailyWeather(*batch_weather[d - weather_from]), irrigation[d, :k])
         if d in ends:
             for name in final:
                 final[name][ends[d]] = getattr(state, name)[ends[d]]
