@@ -59,6 +59,13 @@ def test_tiny_training_writes_loadable_policies(tmp_path, extra, algorithm, hist
     assert summary["steps_run"] >= 512 and summary["algorithm"] == algorithm
     config = json.loads((out / "model.json").read_text())
     assert config["history"] == history and len(config["scaler"]["mean"]) == EXTENDED.size
+    # the run's policy is its checkpoint with the best validation return (the curve's rows)
+    import csv
+    with open(out / "learning_curve.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    best = max(rows, key=lambda r: float(r["validation_return"]))
+    assert config["timesteps_at_save"] == int(best["timesteps"]) == summary["selected"]["timesteps"]
+    assert (out / "final_model.zip").exists() and "best validation return" in config["selected_by"]
     policy = LearnedPolicy(out / "model.zip")
     early = LearnedPolicy(out / "early_model.zip")
     assert json.loads((out / "early_model.json").read_text())["timesteps_at_save"] < summary["steps_run"]

@@ -11,8 +11,9 @@ uses the true reward.
 Along the way (every ``--eval-freq`` steps) the deterministic policy runs on fixed validation seasons (a
 generator seed the training pool does not use) with fixed terms and is saved as ``checkpoint_<steps>.zip``
 (the evaluation's learning curves on held-out seasons read them); the curve (CSV), a checkpoint at 1 % of
-the budget (``early_model.zip``, for the "learning is real" check) and the final policy (``model.zip`` +
-``model.json``) go to ``--out``. Nothing held out is used to choose anything.
+the budget (``early_model.zip``, for the "learning is real" check), the final policy (``final_model.zip``) and
+the run's policy (``model.zip`` + ``model.json``: the checkpoint with the best validation return, as
+:func:`select_model` picks it) go to ``--out``. Nothing held out is used to choose anything.
 """
 
 from __future__ import annotations
@@ -114,6 +115,25 @@ def training_env(scenario, n_envs: int, seed: int, scaler: ObservationScaler, hi
     return TaskWrapper()
 
 
+def select_model(out: Path) -> dict:
+    """``model.zip`` (+ ``.json``) of the run in ``out``: its checkpoint with the best validation return
+    (``learning_curve.csv``; validation seasons are generated with a seed the training pool does not use; no
+    held-out season is involved). Returns which one was chosen."""
+    import shutil
+    with open(out / "learning_curve.csv", newline="") as f:
+        rows = [r for r in csv.DictReader(f)]
+    best = max(rows, key=lambda r: float(r["validation_return"]))
+    steps = int(best["timesteps"])
+    source = out / f"checkpoint_{steps:09d}.zip"
+    if not source.exists():  # the last evaluation is the final model's
+        source = out / "final_model.zip"
+    shutil.copyfile(source, out / "model.zip")
+    config = json.loads(source.with_suffix(".json").read_text())
+    config["selected_by"] = "best validation return of the run's checkpoints (generated seasons, unused seed)"
+    (out / "model.json").write_text(json.dumps(config, indent=1) + "\n")
+    return {"timesteps": steps, "validation_return": float(best["validation_return"]), "file": source.name}
+
+
 def train_task(args) -> dict:
     import torch
     from crop_sim_ros.task import core
@@ -213,12 +233,13 @@ def train_task(args) -> dict:
     model.learn(total_timesteps=args.timesteps, callback=callback, progress_bar=not args.no_progress)
     training_s = time.perf_counter() - callback.started
     callback.evaluate()
-    save(model, "model", model.num_timesteps)
+    save(model, "final_model", model.num_timesteps)
     with open(out / "learning_curve.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    summary = {**config, "steps_run": int(model.num_timesteps), "training_wall_s": round(training_s, 1),
+    selected = select_model(out)
+    summary = {**config, "steps_run": int(model.num_timesteps), "selected": selected, "training_wall_s": round(training_s, 1),
                "total_wall_s": round(time.perf_counter() - launched, 1), "default_rule_validation_return": rule_return,
                "final": rows[-1], "command": "crop-sim " + " ".join(sys.argv[1:])}
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
