@@ -5,7 +5,7 @@ Used by evaluation, by the rule tuning and by the training's held-out evaluation
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -62,6 +62,16 @@ def season_contexts(scenario) -> list[SeasonContext]:
     return contexts
 
 
+def contexts_with_terms(contexts: list[SeasonContext], terms: dict) -> list[SeasonContext]:
+    """One context per field, each carrying its episode terms in ``extra["terms"]`` (name -> float, the names
+    of ``crop_sim_ros.task.core.EpisodeTerms``; ``terms``: name -> (N,) arrays, as the environment's info
+    gives them): what the task family's hindsight oracle plans with."""
+    from crop_sim_ros.task import core
+    return [replace(context, extra={**context.extra, "terms": {name: float(np.asarray(terms[name])[i])
+                                                               for name in core.EpisodeTerms._fields}})
+            for i, context in enumerate(contexts)]
+
+
 def run_episodes(policy, scenario, seasons, seed: int | None = 0, record: bool = False,
                  contexts: list[SeasonContext] | None = None, terms: dict | None = None) -> Episodes:
     """One episode per entry of ``seasons`` (indices into the scenario's seasons), all fields at once, with
@@ -70,8 +80,9 @@ def run_episodes(policy, scenario, seasons, seed: int | None = 0, record: bool =
     ``terms`` (name -> (N,) array, see ``IrrigationVectorEnv.reset``) fixes the family task's drawn terms
     (prices, quota) of each field, for comparisons on the same terms.
 
-    Policies with ``begin_season`` get the list of the fields' :class:`SeasonContext` (``contexts`` of
-    the scenario, computed if not given) before the first step.
+    Policies with ``begin_season`` get, after the reset and before the first step, the list of the fields'
+    :class:`SeasonContext` (``contexts`` of the scenario, computed if not given), each with the field's episode
+    terms (:func:`contexts_with_terms`).
     """
     from gymnasium.vector import AutoresetMode
     from crop_sim_ros.task import IrrigationVectorEnv
@@ -81,10 +92,10 @@ def run_episodes(policy, scenario, seasons, seed: int | None = 0, record: bool =
     env = IrrigationVectorEnv(n, scenario, autoreset_mode=AutoresetMode.SAME_STEP)
     if hasattr(policy, "reset"):
         policy.reset(seed)
+    obs, info = env.reset(seed=seed, options={"season": seasons, **({} if terms is None else {"terms": terms})})
     if hasattr(policy, "begin_season"):
         all_contexts = contexts if contexts is not None else season_contexts(scenario)
-        policy.begin_season([all_contexts[k] for k in seasons])
-    obs, info = env.reset(seed=seed, options={"season": seasons, **({} if terms is None else {"terms": terms})})
+        policy.begin_season(contexts_with_terms([all_contexts[k] for k in seasons], info))
     potential = np.asarray(info["potential_yield_t_ha"], dtype=float).copy()
     total = np.zeros(n)
     water = np.zeros(n)
