@@ -197,10 +197,12 @@ def plot_policy(name: str, episodes, context, path: Path) -> None:
 
 def run(args) -> int:
     from crop_sim_ros.simulate import find_scenario, output_directory
+    from crop_sim_ros.task.core import scenario_table
     names = [n.strip() for n in args.policies.split(",") if n.strip()]
     seeds = parse_seeds(args.seeds)
     with user_input("--seasons"):
         scenario = find_scenario(args.seasons)
+        scenario_table(scenario)  # reads the weather now (a broken file is the user's); cached for the run
     out = output_directory(args.out)
     rows, episodes, oracle_results, contexts = evaluate(names, scenario, seeds, args.ppo_path,
                                                         record=not args.no_plots)

@@ -207,6 +207,17 @@ def test_evaluate_user_errors_are_one_line_and_status_2(tmp_path, policy_files, 
     assert_one_line_usage_error(done, "evaluate", *fragments)
 
 
+@pytest.mark.parametrize("kind", ["not a number", "TMIN above TMAX", "UTF-16 without a byte-order mark"])
+def test_evaluate_weather_errors_are_one_line_naming_file_and_line(tmp_path, kind):
+    content, fragment = broken_weather(kind)
+    weather = tmp_path / "weather.csv"
+    weather.write_bytes(content)
+    (tmp_path / "s.yaml").write_text(scenario_yaml(str(weather)))
+    done = run_crop_sim("evaluate", "--policies", "zero", "--seasons", str(tmp_path / "s.yaml"), "--seeds", "0",
+                        "--no-plots", "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert_one_line_usage_error(done, "evaluate", "--seasons: ", str(weather), fragment)
+
+
 @pytest.mark.parametrize("args, fragment", [
     (["--seasons", "0"], "--seasons: 0 is not in 1..100000"),
     (["--seasons", "100001"], "--seasons: 100001 is not in 1..100000"),
