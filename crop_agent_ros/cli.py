@@ -25,6 +25,8 @@ COMMANDS = {
     "bench": ("crop_sim_ros.bench", "benchmark the model and the environment (field-days per second)"),
     "train": ("crop_agent_ros.train", "train a PPO irrigation policy (Stable-Baselines3)"),
     "evaluate": ("crop_agent_ros.evaluate", "evaluate policies on held-out seasons"),
+    "tune-rule": ("crop_agent_ros.policies.family_tuning",
+                  "tune a family task's water-budget rule on generated training seasons"),
     "ros-bench": ("crop_agent_ros.ros_bench", "benchmark days per second through ROS 2 against bare rclpy"),
 }
 
