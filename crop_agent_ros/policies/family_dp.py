@@ -44,12 +44,20 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from crop_sim_ros import model
+from crop_sim_ros.model import simple
+
 KG_PER_T = 1000.0
 
 
-def _model():
-    from crop_sim_ros import model
-    return model
+def water_input_for(infiltrated_mm, retention_mm):
+    """The water input P (mm) whose infiltration after SCS runoff, P - (P - 0.2 S)^2 / (P + 0.8 S) above
+    0.2 S, is ``infiltrated_mm`` (inf when it exceeds the curve's limit 1.2 S): solving the quadratic."""
+    a, b = 0.2 * retention_mm, 0.8 * retention_mm
+    f = np.maximum(infiltrated_mm, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        above = np.where(f < 1.2 * retention_mm, (a * a + b * f) / (1.2 * retention_mm - f), np.inf)
+    return np.where(f <= a, f, above)
 
 
 @dataclass
@@ -69,12 +77,9 @@ class SeasonProgramme:
 
     def __init__(self, problem, water_step_mm: float = 0.5, offset_step_degc_d: float = 20.0,
                  offset_max_degc_d: float = 1200.0):
-        m = _model()
-        from crop_sim_ros.model import simple
-        self.simple = simple
         context = problem.context
         p = {f.name: float(np.broadcast_to(getattr(context.params, f.name), (1,))[0])
-             for f in fields(m.FieldParameters)}
+             for f in fields(model.FieldParameters)}
         self.p = p
         self.problem = problem
         tmax, tmin, srad, rain, et0 = (np.asarray(a, dtype=float) for a in (
@@ -100,9 +105,9 @@ class SeasonProgramme:
         self.retention = p["runoff_retention_mm"]
         self.cap = float(problem.capacity_mm_per_day)
         self.value_per_kg = problem.yield_value_per_t * p["harvest_index"] / KG_PER_T
-        if self.ddc <= 0.0:
-            raise ValueError("family DP: the soil's deep drainage coefficient must be > 0 (the water grid is bounded "
-                             "by drainage)")
+        if not 0.0 < self.ddc < 1.0:
+            raise ValueError(f"family DP: the soil's deep drainage coefficient must be in (0, 1) (the water grid is "
+                             f"bounded by drainage), got {self.ddc}")
         top = max(p["initial_paw_mm"], self.capacity_soil
                   + (1.0 - self.ddc) / self.ddc * (float(rain.max()) + self.cap))
         self.water_step = float(water_step_mm)
@@ -113,19 +118,18 @@ class SeasonProgramme:
     # --- the water balance and its inverse (crop_sim_ros.model.simple.water_balance) ---------------------
     def _forward(self, water_mm, irrigation_mm, d):
         """(tomorrow's W, today's T) from W and today's irrigation (arrays broadcast)."""
-        flux = self.simple.water_balance(water_mm, self.rain[d] + irrigation_mm, self.et0[d], self.retention,
-                                         self.p["available_water_capacity"], self.ddc, self.p["root_zone_depth_mm"])
+        flux = simple.water_balance(water_mm, self.rain[d] + irrigation_mm, self.et0[d], self.retention,
+                                    self.p["available_water_capacity"], self.ddc, self.p["root_zone_depth_mm"])
         return flux.plant_available_water_mm, flux.transpiration_mm
 
     def _inverse(self, water_mm, target_mm, d):
         """(irrigation, T) that bring W to ``target_mm`` tomorrow (targets at or above the no-water one)."""
-        u = self.simple.WATER_UPTAKE_COEFFICIENT
+        u = simple.WATER_UPTAKE_COEFFICIENT
         et0 = self.et0[d]
         after_drainage = np.where(target_mm * u / (1.0 - u) <= et0, target_mm / (1.0 - u), target_mm + et0)
         before = np.where(after_drainage <= self.capacity_soil, after_drainage,
                           self.capacity_soil + (after_drainage - self.capacity_soil) / (1.0 - self.ddc))
-        from .family_oracle import _infiltration_inverse
-        water_input = _infiltration_inverse(before - water_mm, self.retention)
+        water_input = water_input_for(before - water_mm, self.retention)
         return np.maximum(water_input - self.rain[d], 0.0), np.minimum(u * after_drainage, et0)
 
     def _f_water(self, transpiration_mm, d):
@@ -188,7 +192,7 @@ class SeasonProgramme:
 
     def _state_terms(self, d: int):
         """For the grid states of day d >= 1: fSolar (nW, nO) and tomorrow's offset (nW, nO)."""
-        simple, p = self.simple, self.p
+        p = self.p
         u = simple.WATER_UPTAKE_COEFFICIENT
         yesterday_t = np.minimum(self.et0[d - 1], self.water * u / (1.0 - u))
         f_water = self._f_water(yesterday_t, d - 1)
@@ -254,13 +258,12 @@ def upper_bound(problem, water_step_mm: float = 0.25, multipliers_per_round: int
 def _forward_plans(programme: SeasonProgramme, tables: list, prices: np.ndarray, amounts: int = 33) -> np.ndarray:
     """For each price: the schedule that each day maximises today's reward + the interpolated value of
     tomorrow's state, on the true model, within the capacity and the quota left. (D, M)."""
-    m = _model()
     problem = programme.problem
     context = problem.context
     count = len(prices)
     schedules = np.zeros((problem.days, count))
-    params = m.repeat_parameters(context.params, count * amounts)
-    state = m.initial_state(m.repeat_parameters(context.params, count))
+    params = model.repeat_parameters(context.params, count * amounts)
+    state = model.initial_state(model.repeat_parameters(context.params, count))
     left = np.full(count, problem.quota_mm - 1e-6 if np.isfinite(problem.quota_mm) else np.inf)
     rows = np.arange(count)
     fraction = np.linspace(0.0, 1.0, amounts)
@@ -269,10 +272,10 @@ def _forward_plans(programme: SeasonProgramme, tables: list, prices: np.ndarray,
             break
         top = np.where(state.mature, 0.0, np.minimum(programme.cap, np.maximum(left, 0.0)))
         choices = (top[:, None] * fraction[None, :]).ravel()
-        batch = m.CropState(*(np.repeat(a, amounts) for a in state))
-        weather = m.DailyWeather(context.tmax_degc[d], context.tmin_degc[d], context.srad_mj_m2[d],
+        batch = model.CropState(*(np.repeat(a, amounts) for a in state))
+        weather = model.DailyWeather(context.tmax_degc[d], context.tmin_degc[d], context.srad_mj_m2[d],
                                  context.rain_mm[d], context.et0_mm[d])
-        after, _ = m.step(params, batch, weather, choices)
+        after, _ = model.step(params, batch, weather, choices)
         reward = (programme.value_per_kg * (after.biomass_kg_ha - batch.biomass_kg_ha)
                   - np.repeat(prices, amounts) * choices - problem.event_cost * (choices > 0.0)).reshape(count, amounts)
         offset = (state.i50b_degc_d - programme.base_i50b[d + 1])[:, None]
@@ -283,7 +286,7 @@ def _forward_plans(programme: SeasonProgramme, tables: list, prices: np.ndarray,
         pick = rows * amounts + best
         schedules[d] = choices[pick]
         left -= choices[pick]
-        state = m.CropState(*(a[pick] for a in after))
+        state = model.CropState(*(a[pick] for a in after))
     return schedules
 
 

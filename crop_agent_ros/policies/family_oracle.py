@@ -13,55 +13,69 @@ schedule it returns is feasible (each day in [0, capacity], total <= quota, noth
 environment applies it unchanged and pays the planned return.
 
 Method (all fields of a call are searched side by side: each round's candidates of every field are the
-columns of one batched run of :func:`crop_sim_ros.model.step`):
+columns of one batched run of :func:`crop_sim_ros.model.step`; a candidate that differs from its field's
+current schedule from day d on joins the run on day d from that schedule's state):
 
-1. **Start.** ``"family"``: the best member of a parametric family that generalises the just-in-time refill
-   of :mod:`crop_agent_ros.policies.oracle`: each day the least water that brings the soil, after runoff and
-   drainage, to ``max(k ET0 / 0.096, floor_mm)`` (the level at which SIMPLE's crop transpires ``k`` ET0),
-   cut to the capacity and to the quota left, only on days ``start_day <= d < stop_day`` and only when the
-   need is at least ``min_amount_mm`` (event costs); a grid over k (deficit levels below 1 spread a quota's
-   stress), floor, start day (save the quota for later), stop day (before the TT maturity day) and minimum
-   amount, and constant amounts; the best return wins. ``"uniform"``: the quota (or, without one, the
-   season's ET0 - rain - initial soil water) spread evenly over the days to the TT maturity day, at most the
-   capacity. Or any given feasible schedules (e.g. a rule's realised schedule).
+1. **Starts** (:data:`START_NAMES`; by default "plan" and "family", and the best end wins):
+
+   - ``"plan"``: the best of the global plans of :func:`crop_agent_ros.policies.family_dp.plan`, a dynamic
+     programme over the soil water and SIMPLE's senescence state with the quota priced by a sweep of
+     multipliers (see that module): no start schedule or rule involved.
+   - ``"family"``: the best member of a parametric family that generalises the paper oracle's just-in-time
+     refill (:mod:`crop_agent_ros.policies.oracle`): each day the least water that brings the soil, after
+     runoff and drainage, to ``max(k ET0 / 0.096, floor_mm)`` (the level at which SIMPLE's crop transpires k
+     ET0), cut to the capacity and to the quota left, only on days ``start_day <= d < stop_day`` and only when
+     the need is at least a least amount (event costs); a grid over k (levels below 1 spread a quota's
+     stress), floor, start day (keep the quota for later), stop day (before the TT maturity day) and least
+     amount, and constant amounts.
+   - ``"uniform"``: the quota (without one: the season's ET0 - rain - initial soil water) spread evenly over
+     the days to the TT maturity day, at most the capacity.
+   - or given feasible schedules (e.g. a rule's realised schedule).
 2. **Local search with feasibility-preserving moves** at step s = min(16, capacity) mm, halved down to
-   ``finest_step_mm`` (1/8 mm): +s on one day (only within the capacity; accepted only within the quota),
-   -s on one day, shifts of s mm from day i to day j (the total kept: the moves that matter under a binding
-   quota) for ``|i - j| <= shift_window_days`` and, in a second batch of the same round, for the pairs of
-   the days where +s gains most and -s loses least (shifts of any distance); with an event cost also
-   "drop a day" and "merge day i into an irrigated day j". Each round the best feasible move is taken, or
-   the greedy combination of the improving feasible moves on disjoint days when it gains more. At the
-   finest step no move improves: a local optimum of this neighbourhood.
+   ``finest_step_mm`` (1/8 mm): +s on a day (within the capacity; accepted only within the quota), -s on a
+   day, shifts of s mm from day i to day j (the total kept: the moves that matter under a binding quota) for
+   ``|i - j| <= shift_window_days``, and, in a second batch of the same round, shifts between the
+   ``pair_days`` days where +s gains most and those where -s loses least (any distance apart); with an event
+   cost also "drop a day" and "merge a day into a wet day". Each round takes the best feasible move, or the
+   greedy combination of the improving feasible moves on disjoint days when it gains more. At the finest
+   step no move improves: a local optimum of this neighbourhood.
 
-Evidence of optimality (:func:`compare_starts`, the module's command line): the search run from two
-different starts (the family's best and the uniform spread) ends within a small fraction of the return of
-each other, and :func:`dp_upper_bound` is a rigorous upper bound on every feasible schedule's return (a
-dynamic program over the soil water and SIMPLE's senescence state; see its docstring), so
-``bound - return`` bounds the oracle's distance to the optimum. The cheap ``potential_bound`` (value x the
-season's yield without water stress) bounds it too, but loosely under a quota.
+Why several starts: under a binding quota the return is far from concave in the schedule (water stress on
+any day advances senescence, so the crop is better stressed hard in some spells and kept unstressed in
+others); measured on benton-quota, the returns along the straight line between two searches' ends dip by
+15-40 USD/ha, and single starts end up to 1 % apart. The plan start is the strongest; the family start
+rescues the fields where it is not.
 
-    python -m crop_agent_ros.policies.family_oracle --task benton-quota --seasons 0..9 [--bound]
+Evidence (:func:`report`, this module's command line): the searches from the plan, family and uniform
+starts end close together, and :func:`crop_agent_ros.policies.family_dp.upper_bound` is a rigorous upper
+bound on every feasible schedule's return (tight without a quota; loose under a binding one, where it
+ignores the senescence that water stress advances); ``potential_bound`` (value x the season's yield
+without water stress) is a second, looser one.
+
+    python -m crop_agent_ros.policies.family_oracle --task benton-quota --seasons 0..9 [--bound-step-mm 0.25]
 """
 
 from __future__ import annotations
 
+import argparse
+import sys
 import time
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
+from crop_sim_ros import model
+from crop_sim_ros.model.simple import WATER_UPTAKE_COEFFICIENT
+from crop_sim_ros.task import core
 from crop_sim_ros.task.layout import EXTENDED
 
 from .base import DAYS_SINCE_SOWING, BasePolicy, SeasonContext
+from .family_dp import plan, upper_bound, water_input_for
+from .family_tuning import draw_terms
+from .rollout import contexts_with_terms, scenario_of, season_contexts
 
-UPTAKE_PER_DAY = 0.096  # ARID's water uptake coefficient, d-1 (crop_sim_ros.model.simple.WATER_UPTAKE_COEFFICIENT)
 TERM_NAMES = ("yield_value_per_t", "water_cost_per_mm", "quota_mm")  # core.EpisodeTerms, in SeasonContext.extra
 QUOTA_MARGIN_MM = 1e-6
-
-
-def _model():
-    from crop_sim_ros import model
-    return model
 
 
 @dataclass(frozen=True)
@@ -74,8 +88,6 @@ class TaskConstants:
 
     @classmethod
     def of_scenario(cls, scenario) -> "TaskConstants":
-        from crop_sim_ros.task import core
-        from .rollout import scenario_of
         params = core.task_params(scenario_of(scenario))
         return cls(float(min(params.capacity_mm_per_day, params.max_irrigation_mm)), float(params.event_cost))
 
@@ -131,7 +143,6 @@ class _Fields:
     field's TT maturity day (the last day any schedule can be counted on)."""
 
     def __init__(self, problems: list[FieldProblem]):
-        m = _model()
         self.problems = problems
         self.n = len(problems)
         self.n_days = np.array([p.days for p in problems])
@@ -153,8 +164,8 @@ class _Fields:
         self.event_cost = np.array([p.event_cost for p in problems])
         first = problems[0].context.params
         self.shared = all(all(np.array_equal(getattr(p.context.params, f.name), getattr(first, f.name))
-                              for f in fields(m.FieldParameters)) for p in problems[1:])
-        self.params = first if self.shared else m.stack_parameters([p.context.params for p in problems])
+                              for f in fields(model.FieldParameters)) for p in problems[1:])
+        self.params = first if self.shared else model.stack_parameters([p.context.params for p in problems])
         harvest_index = np.broadcast_to(self.params.harvest_index, (self.n,))
         # reward units per kg ha-1 of biomass at maturity
         self.value_per_kg_biomass = self.value_per_t * harvest_index / 1000.0
@@ -164,8 +175,8 @@ class _Fields:
         """FieldParameters of columns owned by the fields ``owner`` (shared: the one field, broadcast)."""
         if self.shared:
             return self.params
-        return _model().FieldParameters(**{f.name: getattr(self.params, f.name)[owner]
-                                           for f in fields(_model().FieldParameters)})
+        return model.FieldParameters(**{f.name: getattr(self.params, f.name)[owner]
+                                        for f in fields(model.FieldParameters)})
 
     def _tt_maturity_days(self) -> np.ndarray:
         """The day each field's crop reaches its thermal time to maturity (water cannot change it; stress can
@@ -200,7 +211,6 @@ def _run(fs: _Fields, bases: np.ndarray, base_owner: np.ndarray, cand_base: np.n
     base's state that day (before it, it is its base), so a move late in the season costs only its days.
     The run stops when every column is mature or past its season. Returns the bases' and the candidates'
     :class:`_Runs`."""
-    m = _model()
     b = bases.shape[1]
     if cand_base is None:
         cand_base = np.zeros(0, dtype=np.int64)
@@ -228,11 +238,11 @@ def _run(fs: _Fields, bases: np.ndarray, base_owner: np.ndarray, cand_base: np.n
 
     def prefix(count: int):  # the parameters of the first ``count`` batch columns
         return params_all if fs.shared else replace(
-            params_all, **{f.name: getattr(params_all, f.name)[:count] for f in fields(m.FieldParameters)})
+            params_all, **{f.name: getattr(params_all, f.name)[:count] for f in fields(model.FieldParameters)})
 
     k = b
     params = prefix(k)
-    state = m.initial_state(m.repeat_parameters(fs.params, k) if fs.shared else params)
+    state = model.initial_state(model.repeat_parameters(fs.params, k) if fs.shared else params)
     water = np.zeros(k)
     events = np.zeros(k)
     ends = {int(d): np.flatnonzero(end_day == d) for d in np.unique(end_day)}
@@ -241,7 +251,7 @@ def _run(fs: _Fields, bases: np.ndarray, base_owner: np.ndarray, cand_base: np.n
         arriving = int(joined[d])
         if arriving > k:
             source = col_base[k:arriving]  # the bases sit at batch positions 0..b-1
-            state = m.CropState(*(np.concatenate([a, a[source]]) for a in state))
+            state = model.CropState(*(np.concatenate([a, a[source]]) for a in state))
             water = np.concatenate([water, water[source]])
             events = np.concatenate([events, events[source]])
             k = arriving
@@ -252,8 +262,8 @@ def _run(fs: _Fields, bases: np.ndarray, base_owner: np.ndarray, cand_base: np.n
         counted = ~state.mature & (d <= end_day[:k])
         water = water + np.where(counted, irrigation, 0.0)
         events = events + (counted & (irrigation > 0.0))
-        weather = m.DailyWeather(*np.take(fs.weather[d], col_owner[:k], axis=1))
-        state, _ = m.step(params, state, weather, irrigation)
+        weather = model.DailyWeather(*np.take(fs.weather[d], col_owner[:k], axis=1))
+        state, _ = model.step(params, state, weather, irrigation)
         if d in ends:
             done = ends[d][ends[d] < k]
             final_mature[done] = state.mature[done]
@@ -271,18 +281,11 @@ def _run(fs: _Fields, bases: np.ndarray, base_owner: np.ndarray, cand_base: np.n
     runs = _Runs(returns, final_mature, final_day, water, events, final_biomass)
     position = np.empty(c, dtype=np.int64)
     position[order] = b + np.arange(c)
-    pick = lambda index: _Runs(*(getattr(runs, f.name)[index] for f in fields(_Runs)))  # noqa: E731
+
+    def pick(index: np.ndarray) -> _Runs:
+        return _Runs(*(getattr(runs, f.name)[index] for f in fields(_Runs)))
+
     return pick(np.arange(b)), pick(position)
-
-
-def _infiltration_inverse(infiltrated_mm, retention_mm):
-    """The water input P (mm) whose infiltration after SCS runoff, P - (P - 0.2 S)^2 / (P + 0.8 S) above
-    0.2 S, is ``infiltrated_mm`` (inf when it exceeds the curve's limit 1.2 S): solving the quadratic."""
-    a, b = 0.2 * retention_mm, 0.8 * retention_mm
-    f = np.maximum(infiltrated_mm, 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        above = np.where(f < 1.2 * retention_mm, (a * a + b * f) / (1.2 * retention_mm - f), np.inf)
-    return np.where(f <= a, f, above)
 
 
 # The family's grid (see the module docstring): level factor k, floor (mm), first day, days before the TT
@@ -313,10 +316,9 @@ def _family_members(with_event_cost: bool) -> dict:
 def _family_runs(fs: _Fields, owner: np.ndarray, members: dict, record: bool = False):
     """Returns (reward units) of the family members ``members`` (arrays, one per column) for the fields
     ``owner``, and with ``record`` their schedules (D, columns)."""
-    m = _model()
     n = len(owner)
     params = fs.params_of(owner)
-    state = m.initial_state(m.repeat_parameters(fs.params, n) if fs.shared else params)
+    state = model.initial_state(model.repeat_parameters(fs.params, n) if fs.shared else params)
     capacity_soil = np.broadcast_to(params.capacity_mm, (n,))
     retention = np.broadcast_to(params.runoff_retention_mm, (n,))
     ddc = np.broadcast_to(params.deep_drainage_coefficient, (n,))
@@ -332,14 +334,14 @@ def _family_runs(fs: _Fields, owner: np.ndarray, members: dict, record: bool = F
     events = np.zeros(n)
     schedules = np.zeros((fs.width, n)) if record else None
     for d in range(fs.width):
-        weather = m.DailyWeather(*np.take(fs.weather[d], owner, axis=1))
-        level = np.maximum(members["k"] * weather.et0_mm / UPTAKE_PER_DAY, members["floor_mm"])
+        weather = model.DailyWeather(*np.take(fs.weather[d], owner, axis=1))
+        level = np.maximum(members["k"] * weather.et0_mm / WATER_UPTAKE_COEFFICIENT, members["floor_mm"])
         with np.errstate(divide="ignore"):
             before_drainage = np.where(level > capacity_soil,
                                        np.where(ddc < 1.0, capacity_soil + (level - capacity_soil) / (1.0 - ddc),
                                                 np.inf), level)
         need = before_drainage - state.plant_available_water_mm
-        refill = np.maximum(_infiltration_inverse(need, retention) - weather.rain_mm, 0.0)
+        refill = np.maximum(water_input_for(need, retention) - weather.rain_mm, 0.0)
         amount = np.where(is_constant, constant, refill)
         amount = np.where((amount >= least) & (members["start_day"] <= d) & (d < stop) & ~state.mature,
                           amount, 0.0)
@@ -351,7 +353,7 @@ def _family_runs(fs: _Fields, owner: np.ndarray, members: dict, record: bool = F
         events += counted & (amount > 0.0)
         if record:
             schedules[d] = np.where(d <= end_day, amount, 0.0)
-        state, _ = m.step(params, state, weather, amount)
+        state, _ = model.step(params, state, weather, amount)
         if np.all(state.mature | (end_day <= d)):
             break
     returns = (np.where(state.mature, fs.value_per_kg_biomass[owner] * state.biomass_kg_ha, 0.0)
@@ -386,7 +388,6 @@ def _uniform_start(fs: _Fields) -> np.ndarray:
 def _plan_start(fs: _Fields) -> np.ndarray:
     """Each field's best plan of the dynamic programme (:func:`crop_agent_ros.policies.family_dp.plan`, one
     plan per quota multiplier): schedules (D, P)."""
-    from .family_dp import plan
     schedules = np.zeros((fs.width, fs.n))
     for i, problem in enumerate(fs.problems):
         candidates = plan(problem)
@@ -531,10 +532,10 @@ def _combined(a: np.ndarray, moves: _Moves, gains: np.ndarray, room_mm: float) -
 
 def _stacked(moves: list[_Moves]):
     """(cand_base, cand_days, cand_values) of every field slot's moves, for :func:`_run`."""
-    if not sum(len(m) for m in moves):
+    if not sum(len(mv) for mv in moves):
         return None, None, None
-    return (np.concatenate([np.full(len(m), slot, dtype=np.int64) for slot, m in enumerate(moves)]),
-            np.concatenate([m.days for m in moves]), np.concatenate([m.values for m in moves]))
+    return (np.concatenate([np.full(len(mv), slot, dtype=np.int64) for slot, mv in enumerate(moves)]),
+            np.concatenate([mv.days for mv in moves]), np.concatenate([mv.values for mv in moves]))
 
 
 def _local_search(fs: _Fields, schedules: np.ndarray, finest_step_mm: float, first_step_mm: float,
@@ -561,7 +562,7 @@ def _local_search(fs: _Fields, schedules: np.ndarray, finest_step_mm: float, fir
         moves = [_moves(current[:, k], int(last_day[i]), step[i], fs.capacity_mm[i], shift_window_days,
                         fs.event_cost[i]) for k, i in enumerate(slots)]
         base, runs = _run(fs, current, slots, *_stacked(moves))
-        ends = np.cumsum([len(m) for m in moves])
+        ends = np.cumsum([len(mv) for mv in moves])
         gains = [g - base.returns[k] for k, g in enumerate(np.split(runs.returns, ends[:-1]))]
         # second batch: long shifts between the best +step and -step days; each field's combination
         pairs = [_pair_moves(current[:, k], moves[k], gains[k], step[i], fs.capacity_mm[i], shift_window_days,
@@ -572,7 +573,7 @@ def _local_search(fs: _Fields, schedules: np.ndarray, finest_step_mm: float, fir
         bases = np.concatenate([current] + [combined[k][:, None] for k in with_combined], axis=1)
         base2, runs2 = _run(fs, bases, np.concatenate([slots, slots[with_combined]]).astype(np.int64),
                             *_stacked(pairs))
-        pair_ends = np.cumsum([len(m) for m in pairs])
+        pair_ends = np.cumsum([len(mv) for mv in pairs])
         pair_gains = [g - base2.returns[k] for k, g in enumerate(np.split(runs2.returns, pair_ends[:-1]))]
         for k, i in enumerate(slots):
             options = []  # (gain, schedule, runs, column)
@@ -727,8 +728,6 @@ class FamilyOraclePolicy(BasePolicy):
 def season_problems(scenario, seasons, seed: int = 0) -> list[FieldProblem]:
     """One problem per season index of ``scenario``, with one draw of the task's episode terms per season
     (:func:`crop_agent_ros.policies.family_tuning.draw_terms`, seeded by ``seed``)."""
-    from .family_tuning import draw_terms
-    from .rollout import contexts_with_terms, scenario_of, season_contexts
     scenario = scenario_of(scenario)
     seasons = np.asarray(seasons, dtype=np.int64)
     contexts = season_contexts(scenario)
@@ -740,7 +739,6 @@ def report(problems: list[FieldProblem], bound_step_mm: float = 0.25, log=print)
     """The oracle on ``problems`` (default starts, all fields at once; CPU seconds per field), the search from
     the uniform start (a second, independent start), and each field's rigorous upper bound
     (:func:`crop_agent_ros.policies.family_dp.upper_bound`; ``bound_step_mm`` 0: none): one row per field."""
-    from .family_dp import upper_bound
     began = time.process_time()
     oracle = plan_fields(problems)
     seconds = (time.process_time() - began) / len(problems)
@@ -778,8 +776,6 @@ def _season_range(text: str) -> np.ndarray:
 
 
 def main(argv=None) -> int:
-    import argparse
-    import sys
     parser = argparse.ArgumentParser(prog="python -m crop_agent_ros.policies.family_oracle",
                                      description="the family oracle's evidence table on seasons of a family task")
     parser.add_argument("--task", default="benton-quota", help="family scenario (default benton-quota)")
@@ -792,11 +788,9 @@ def main(argv=None) -> int:
         seasons = _season_range(args.seasons)
         if not (args.bound_step_mm >= 0.0):
             raise ValueError(f"--bound-step-mm: expected a number >= 0, got {args.bound_step_mm}")
-        from .rollout import scenario_of
         scenario = scenario_of(args.task)
         if not scenario.is_family_task:
             raise ValueError(f"--task: {args.task!r} is not a family task (it has no money terms)")
-        from crop_sim_ros.task import core
         if seasons.max() >= len(core.scenario_table(scenario)):
             raise ValueError(f"--seasons: {args.task} has seasons 0..{len(core.scenario_table(scenario)) - 1}")
         problems = season_problems(scenario, seasons, args.seed)
