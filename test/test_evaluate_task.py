@@ -54,15 +54,25 @@ def trained_run(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def evaluation(rule_dir, trained_run, tmp_path_factory):
-    """The protocol on the held-out real seasons and a 2-season far generated set, without the oracle (a
-    missing rule file: tuned now on 4 seasons)."""
+    """The protocol with the oracle on the held-out real seasons and a 2-season far generated set (a missing
+    rule file: tuned now on 4 seasons)."""
     out = tmp_path_factory.mktemp("eval")
-    args = parse(["--task", TASK, "--agents", f"ppo={trained_run.parent}/{TASK}-ppo-s*", "--no-oracle",
+    args = parse(["--task", TASK, "--agents", f"ppo={trained_run.parent}/{TASK}-ppo-s*",
                   "--noise-seeds", "2", "--far-seasons", "2", "--sets", "heldout-real,far-benton",
                   "--bootstrap", "200", "--tune-seasons", "4", "--tune-candidates", "6", "--tune-rounds", "1",
                   "--out", str(out)])
     result = et.run_task(args)
     return out, result, trained_run
+
+
+@pytest.fixture(scope="module")
+def gap_evaluation(evaluation, trained_run, tmp_path_factory):
+    """The 2-season far set without the oracle (after ``evaluation``, which tuned the rule)."""
+    out = tmp_path_factory.mktemp("gap")
+    args = parse(["--task", TASK, "--agents", f"ppo={trained_run}", "--no-oracle", "--no-curves",
+                  "--noise-seeds", "2", "--far-seasons", "2", "--sets", "far-benton", "--bootstrap", "200",
+                  "--out", str(out)])
+    return out, et.run_task(args)
 
 
 def rows_of(out: Path) -> list[dict]:
@@ -80,17 +90,20 @@ def test_outputs_have_every_column_set_and_policy(evaluation):
     rows = rows_of(out)
     assert [(r["set"], r["policy"], r["kind"]) for r in rows] == [
         (s, p, k) for s in ("heldout-real", "far-benton")
-        for p, k in (("budget-rule", "rule"), ("ppo", "agent"), ("ppo, 1 % checkpoint", "early"))]
+        for p, k in (("oracle", "oracle"), ("budget-rule", "rule"), ("ppo", "agent"),
+                     ("ppo, 1 % checkpoint", "early"))]
     by_set = {s["name"]: s for s in result["sets"]}
     assert len(by_set["heldout-real"]["seasons"]) == 5 and len(by_set["far-benton"]["seasons"]) == 2
     for r in rows:
-        assert r["noise_seeds"] == "2" and r["reference"].startswith("best evaluated policy")
+        assert r["noise_seeds"] == "2" and r["reference"] == "oracle"
         for column in ("return_usd_ha", "regret_usd_ha", "regret_pct_of_reference", "paired_wins"):
             assert np.isfinite(float(r[column])), (r["policy"], column)
+        if r["kind"] in ("agent", "early"):
+            assert np.isfinite(float(r["ratio_ci_low"])) and r["note"]
     md = (out / "table.md").read_text()
-    assert md.count("| policy | return | gap to best [95 % CI] | gap to best % of best | ratio to rule [95 % CI] | "
+    assert md.count("| policy | return | regret [95 % CI] | regret % of oracle | ratio to rule [95 % CI] | "
                     "paired wins | note |") == 2
-    assert "## heldout-real" in md and "## far-benton" in md and "not a regret" in md
+    assert "## heldout-real" in md and "## far-benton" in md and "gap" not in md
     for name in ("regret.png", "learning_curves.png"):
         assert (out / name).read_bytes()[:8] == PNG_MAGIC
     saved = json.loads((out / "table.json").read_text())
@@ -132,20 +145,47 @@ def test_every_policy_met_the_same_terms_and_noise_seeds(evaluation, rule_dir):
         np.testing.assert_array_equal(np.array(saved["returns_usd_ha"][name]), again[None], err_msg=name)
 
 
-def test_cis_contain_their_means_and_gaps_are_to_the_best_policy(evaluation):
+def test_regret_is_to_the_oracle_and_cis_contain_their_means(evaluation):
     _, result, _ = evaluation
     for s in result["sets"]:
+        oracle = np.array(s["oracle_returns_usd_ha"])
+        # the environment paid each plan what the oracle planned (its schedules are feasible as planned)
+        planned = np.array([plan["planned_return_usd_ha"] for plan in s["oracle_plans"]])
+        np.testing.assert_allclose(oracle, planned, rtol=1e-9)
         returns = {name: np.array(values) for name, values in s["returns_usd_ha"].items()}
-        best = np.max([r.max(axis=0) for r in returns.values()], axis=0)       # (seasons, noise seeds)
+        np.testing.assert_array_equal(returns["oracle"], np.broadcast_to(oracle[None, :, None], (1, len(oracle), 2)))
         for row in s["rows"]:
-            gap = best[None] - returns[row["policy"]]
-            assert row["regret_usd_ha"] == pytest.approx(gap.mean(), rel=1e-12, abs=1e-9)
+            regret = oracle[None, :, None] - returns[row["policy"]]
+            assert row["regret_usd_ha"] == pytest.approx(regret.mean(), rel=1e-12, abs=1e-9)
+            assert row["regret_pct_of_reference"] == pytest.approx(100 * regret.mean() / oracle.mean(), rel=1e-12,
+                                                                   abs=1e-12)
             assert row["return_usd_ha"] == pytest.approx(returns[row["policy"]].mean(), rel=1e-12)
             for prefix, mean in (("return", row["return_usd_ha"]), ("regret", row["regret_usd_ha"]),
                                  ("regret_pct", row["regret_pct_of_reference"])):
-                assert row[f"{prefix}_ci_low"] - 1e-9 <= mean <= row[f"{prefix}_ci_high"] + 1e-9, (row["policy"], prefix)
+                low, high = row[f"{prefix}_ci_low"], row[f"{prefix}_ci_high"]
+                assert low - 1e-9 <= mean <= high + 1e-9, (row["policy"], prefix)
+            if row["kind"] in ("agent", "early"):
+                assert row["ratio_ci_low"] <= row["ratio_to_rule"] <= row["ratio_ci_high"]
             wins = np.mean(returns[row["policy"]] > returns["budget-rule"][None])
             assert row["paired_wins"] == pytest.approx(wins)
+        rule = next(r for r in s["rows"] if r["kind"] == "rule")
+        assert f"regret {rule['regret_pct_of_reference']:.1f} % of the oracle's return" in rule["note"]
+        assert next(r for r in s["rows"] if r["kind"] == "oracle")["regret_usd_ha"] == 0.0
+
+
+def test_without_the_oracle_every_output_says_gap_not_regret(gap_evaluation):
+    out, result = gap_evaluation
+    assert result["regret"].startswith("NO ORACLE") and json.loads((out / "table.json").read_text())["sets"][0][
+        "oracle_returns_usd_ha"] is None
+    md = (out / "table.md").read_text()
+    assert "not a regret" in md and "| gap to best [95 % CI] | gap to best % of best |" in md
+    assert "regret [95 % CI]" not in md and not (out / "learning_curves.png").exists()
+    returns = {name: np.array(v) for name, v in result["sets"][0]["returns_usd_ha"].items()}
+    assert sorted(returns) == ["budget-rule", "ppo", "ppo, 1 % checkpoint"]
+    best = np.max([r.max(axis=0) for r in returns.values()], axis=0)       # (seasons, noise seeds)
+    for row in result["sets"][0]["rows"]:
+        assert row["reference"] == "best evaluated policy (gap, not regret)"
+        assert row["regret_usd_ha"] == pytest.approx((best[None] - returns[row["policy"]]).mean(), rel=1e-12, abs=1e-9)
 
 
 def test_learning_curves_read_every_checkpoint_of_the_run(evaluation):

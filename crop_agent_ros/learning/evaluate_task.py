@@ -30,9 +30,10 @@ drawn with replacement (``--bootstrap`` resamples, seed ``--bootstrap-seed``); e
 resampled on the same seasons and noise seeds (and an agent's final and 1 % checkpoints on the same training
 seeds), so the ratio agent regret / rule regret and the final / 1 % regret ratio are paired: each resample's
 ratio is the ratio of that resample's means. Paired wins: the share of (training seed, season, noise seed)
-where the policy's return is above the rule's on the same season, terms and noise. Headroom: the rule's
-regret as a share of the oracle's mean return (the task is worth learning if >= 2 %). Learning is real when
-the final regret is at most half the 1 % checkpoint's.
+where the policy's return is above the rule's on the same season, terms and noise (a policy above the oracle
+in some episodes is flagged: the oracle's search is local). Headroom: the rule's regret as a share of the
+oracle's mean return (the task is worth learning if >= 2 %). Learning is real when the final regret is at
+most half the 1 % checkpoint's.
 
 Without the oracle (``--no-oracle``) every "regret" is instead the **gap to the best evaluated policy** on each
 (season, noise seed), and every output labels it so: it is not a regret.
@@ -77,7 +78,8 @@ CSV_COLUMNS = (
     "set", "role", "policy", "kind", "group", "runs", "training_seeds", "seasons", "noise_seeds", "timesteps",
     "reference", "return_usd_ha", "return_ci_low", "return_ci_high", "regret_usd_ha", "regret_ci_low",
     "regret_ci_high", "regret_pct_of_reference", "regret_pct_ci_low", "regret_pct_ci_high", "ratio_to_rule",
-    "ratio_ci_low", "ratio_ci_high", "paired_wins", "paired_ties", "final_over_early", "final_over_early_ci_low",
+    "ratio_ci_low", "ratio_ci_high", "paired_wins", "paired_ties", "above_reference", "final_over_early",
+    "final_over_early_ci_low",
     "final_over_early_ci_high", "beats_rule", "learning_is_real", "note")
 
 
@@ -161,7 +163,8 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
     generated, real = (get_scenario(name, task.data_dir) for name in MARICOPA)
     sets.append(EvaluationSet("maricopa-generated",
                               f"{held_out_climate} (Maricopa AZ generator, seed {far_seed})",
-                              with_weather_of(task, reseeded(generated, far_seed, far_seasons)), np.arange(far_seasons)))
+                              with_weather_of(task, reseeded(generated, far_seed, far_seasons)),
+                              np.arange(far_seasons)))
     sets.append(EvaluationSet("maricopa-real", f"{held_out_climate} (Maricopa AZ, real seasons 2007-2009)",
                               with_weather_of(task, real), np.arange(real.n_seasons)))
     return sets
@@ -287,13 +290,16 @@ def policy_returns(policy, evaluation_set: EvaluationSet, terms: dict, noise_see
                                   terms=terms).episode_return for seed in range(noise_seeds)], axis=1)
 
 
-def oracle_returns(evaluation_set: EvaluationSet, terms: dict) -> np.ndarray:
-    """(M,) returns (USD/ha) of the hindsight oracle's plan of each season under its terms (noise seed 0: the
-    plan does not read the observation)."""
+def oracle_returns(evaluation_set: EvaluationSet, terms: dict) -> tuple[np.ndarray, list[dict]]:
+    """(M,) returns (USD/ha) of the hindsight oracle's plan of each season under its terms, run in the
+    environment with noise seed 0 (the plan does not read the observation), and each plan's summary."""
     from ..policies.family_oracle import FamilyOraclePolicy
     from ..policies.rollout import run_episodes
-    return run_episodes(FamilyOraclePolicy(), evaluation_set.scenario, evaluation_set.seasons, seed=0,
-                        terms=terms).episode_return
+    oracle = FamilyOraclePolicy.for_scenario(evaluation_set.scenario)
+    returns = run_episodes(oracle, evaluation_set.scenario, evaluation_set.seasons, seed=0, terms=terms).episode_return
+    plans = [{"planned_return_usd_ha": r.return_value, "potential_bound_usd_ha": r.potential_bound,
+              "water_mm": r.water_mm, "start": r.start, "last_gain_usd_ha": r.last_gain} for r in oracle.results]
+    return returns, plans
 
 
 # --- statistics ------------------------------------------------------------------------------------------
@@ -396,6 +402,7 @@ def compare(evaluated: list[Evaluated], reference: np.ndarray, resamples: Resamp
                "ratio_to_rule": ratio, "ratio_ci_low": ratio_low, "ratio_ci_high": ratio_high,
                "paired_wins": float(np.mean(e.returns > rule.returns)),
                "paired_ties": float(np.mean(e.returns == rule.returns)),
+               "above_reference": float(np.mean(regret < 0.0)),
                "final_over_early": float("nan"), "final_over_early_ci_low": float("nan"),
                "final_over_early_ci_high": float("nan"), "beats_rule": "", "learning_is_real": ""}
         notes = []
@@ -426,6 +433,9 @@ def compare(evaluated: list[Evaluated], reference: np.ndarray, resamples: Resamp
                          + ("learning is real" if real else f"NOT <= {LEARNING_RATIO:g}"))
         elif e.kind == "agent":
             notes.append("no 1 % checkpoint in the run directories")
+        if row["above_reference"] > 0 and with_oracle:
+            notes.append(f"above the oracle in {100 * row['above_reference']:.0f} % of episodes (the oracle's search "
+                         "is local)")
         if not np.isfinite(ratio_low) and e.kind != "oracle":
             notes.append(f"ratio undefined: the rule's {word} is not positive in every resample")
         row["note"] = "; ".join(notes)
@@ -449,9 +459,11 @@ def _fmt(value: float, digits: int = 0) -> str:
 # --- the run --------------------------------------------------------------------------------------------
 
 def _check_arguments(args) -> None:
-    checks = (("--noise-seeds", args.noise_seeds, 1, MAX_NOISE_SEEDS), ("--bootstrap", args.bootstrap, 100, MAX_RESAMPLES),
+    checks = (("--noise-seeds", args.noise_seeds, 1, MAX_NOISE_SEEDS),
+              ("--bootstrap", args.bootstrap, 100, MAX_RESAMPLES),
               ("--far-seasons", args.far_seasons, 1, 10_000), ("--far-seed", args.far_seed, 0, 2**32 - 1),
-              ("--terms-seed", args.terms_seed, 0, 2**32 - 1), ("--bootstrap-seed", args.bootstrap_seed, 0, 2**32 - 1),
+              ("--terms-seed", args.terms_seed, 0, 2**32 - 1),
+              ("--bootstrap-seed", args.bootstrap_seed, 0, 2**32 - 1),
               ("--tune-seasons", args.tune_seasons, 1, 1_000), ("--tune-candidates", args.tune_candidates, 1, 10_000),
               ("--tune-rounds", args.tune_rounds, 0, 50))
     for name, value, low, high in checks:
@@ -532,10 +544,12 @@ def run_task(args) -> dict:
         terms = set_terms(evaluation_set, terms_seed)
         m, k = len(evaluation_set.seasons), args.noise_seeds
         evaluated: list[Evaluated] = []
-        oracle = None
+        oracle, plans, oracle_s = None, None, 0.0
         if args.oracle:
             log(f"{evaluation_set.name}: planning the oracle on {m} seasons")
-            oracle = oracle_returns(evaluation_set, terms)
+            planned = time.perf_counter()
+            oracle, plans = oracle_returns(evaluation_set, terms)
+            oracle_s = round(time.perf_counter() - planned, 1)
             evaluated.append(Evaluated(ORACLE, "oracle", np.broadcast_to(oracle[None, :, None], (1, m, k)).copy()))
         log(f"{evaluation_set.name}: {RULE} and {sum(len(r) for r in agents.values())} agent runs, {m} seasons x "
             f"{k} noise seeds")
@@ -572,10 +586,11 @@ def run_task(args) -> dict:
             "season_sources": [f"{table.sources[s]} sown {table.sowing_dates[s]}" for s in evaluation_set.seasons],
             "terms_seed": terms_seed, "terms": {name: values.tolist() for name, values in terms.items()},
             "oracle_returns_usd_ha": None if oracle is None else oracle.tolist(),
+            "oracle_plans": plans,
             "reference": "oracle" if oracle is not None else "best evaluated policy per (season, noise seed)",
             "returns_usd_ha": {e.name: e.returns.tolist() for e in evaluated},
             "returns_shape": "training runs x seasons x noise seeds", "rows": set_rows,
-            "wall_s": round(time.perf_counter() - t0, 1)})
+            "wall_s": round(time.perf_counter() - t0, 1), "oracle_wall_s": oracle_s})
         log(f"{evaluation_set.name}: done in {time.perf_counter() - t0:.0f} s")
     curves: list[dict] = []
     if args.curves and groups:
@@ -685,7 +700,7 @@ def markdown(result: dict) -> str:
                   f"| policy | return | {word} [95 % CI] | {word} % of {reference} | ratio to rule [95 % CI] | "
                   "paired wins | note |", "|---|---:|---:|---:|---:|---:|---|"]
         for r in s["rows"]:
-            runs = f" ({r['runs']} runs)" if r["kind"] in ("agent", "early") else ""
+            runs = (f" ({r['runs']} run{'s' if r['runs'] > 1 else ''})" if r["kind"] in ("agent", "early") else "")
             regret = ("0 (reference)" if r["kind"] == "oracle" else
                       f"{_fmt(r['regret_usd_ha'])} [{_fmt(r['regret_ci_low'])}, {_fmt(r['regret_ci_high'])}]")
             ratio = ("-" if r["kind"] in ("oracle", "rule") else
