@@ -40,8 +40,11 @@ def add_arguments(parser) -> None:
                         help="scenario whose seasons to run: a name or a YAML path (default heldout)")
     parser.add_argument("--seeds", default="0..9", help="observation-noise seeds: 'A..B' (inclusive) or 'a,b,c'")
     parser.add_argument("--ppo-path", default=None, help="policy file for 'ppo' (default: the shipped one)")
-    parser.add_argument("--out", type=Path, default=Path("runs/evaluate"), help="output directory")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output directory (default runs/evaluate, or runs/eval-<task> with --task)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    from .learning.evaluate_task import add_task_arguments
+    add_task_arguments(parser)
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -196,6 +199,11 @@ def plot_policy(name: str, episodes, context, path: Path) -> None:
 
 
 def run(args) -> int:
+    if args.task is not None:
+        from .learning.evaluate_task import run_task
+        return run_task(args)
+    if args.out is None:
+        args.out = Path("runs/evaluate")
     from crop_sim_ros.simulate import find_scenario, output_directory
     from crop_sim_ros.task.core import scenario_table
     names = [n.strip() for n in args.policies.split(",") if n.strip()]
