@@ -201,7 +201,8 @@ def plot_policy(name: str, episodes, context, path: Path) -> None:
 def run(args) -> int:
     if args.task is not None:
         from .learning.evaluate_task import run_task
-        return run_task(args)
+        run_task(args)
+        return 0
     if args.out is None:
         args.out = Path("runs/evaluate")
     from crop_sim_ros.simulate import find_scenario, output_directory
