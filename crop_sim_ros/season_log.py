@@ -66,7 +66,7 @@ def log_path_problem(path: Path) -> str | None:
     while not ancestor.exists():
         ancestor = ancestor.parent
     if not ancestor.is_dir():
-        return f"log_path: {ancestor} is not a directory"
+        return f"log_path: {path}: {ancestor} is not a directory"
     if not os.access(ancestor, os.W_OK | os.X_OK):
         return f"log_path: cannot create {path} (no write access to {ancestor})"
     return None

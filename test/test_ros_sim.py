@@ -202,16 +202,29 @@ def test_startup_errors_exit_non_zero_with_a_clear_message(tmp_path):
     scenario = tmp_path / "broken.yaml"
     scenario.write_text(f"name: broken\nsowing_date: 2000-04-01\nweather:\n  kind: file\n  path: {broken}\n"
                         "  format: agweathernet\n")
+    absurd = tmp_path / "absurd.yaml"  # a season of 20,000 days (the scenario's bound refuses it)
+    absurd.write_text("base: benton-generated\nname: absurd\nmax_season_days: 20000\n")
+    text = tmp_path / "notes.txt"  # any readable file given as the scenario: refused without being quoted
+    text.write_text("confidential line one of the notes\nconfidential: line two\n")
     cases = {"unknown scenario": {"scenario": "no-such-scenario"}, "unknown crop": {"crop": "banana"},
-             "broken weather file": {"scenario": str(scenario)}}
+             "broken weather file": {"scenario": str(scenario)}, "absurd season length": {"scenario": str(absurd)},
+             "not a scenario": {"scenario": str(text)}, "weather season beyond the pool": {"weather_season": 1000}}
     processes = {what: ros_support.start_sim(tmp_path, params=params, log_name=f"{i}.csv")[0]
                  for i, (what, params) in enumerate(cases.items())}
     try:
+        said = {}
         for what, process in processes.items():
             assert process.wait(60) == 2, (what, process.output())
-        assert "no-such-scenario" in processes["unknown scenario"].output()
-        assert "banana" in processes["unknown crop"].output()
-        assert "broken.csv" in processes["broken weather file"].output()
+            output = process.output()
+            lines = [line for line in output.splitlines() if "cannot start" in line]
+            assert len(lines) == 1 and "Traceback" not in output, (what, output)  # one line, no traceback
+            said[what] = lines[0]
+        assert "no-such-scenario" in said["unknown scenario"]
+        assert "banana" in said["unknown crop"]
+        assert "broken.csv" in said["broken weather file"]
+        assert "max_season_days" in said["absurd season length"] and str(absurd) in said["absurd season length"]
+        assert str(text) in said["not a scenario"] and "confidential" not in processes["not a scenario"].output()
+        assert "weather_season" in said["weather season beyond the pool"]
     finally:
         for process in processes.values():
             process.stop()
@@ -410,10 +423,15 @@ def test_sim_killed_and_restarted_keeps_its_log(tmp_path, ros):
     assert len(runs) == 2 and log.read_text().count("wall_time_utc") == 1
 
 
-def test_free_running_mode_steps_by_itself(shared_sim, ros):
-    _, name, _ = shared_sim
+def test_free_running_mode_steps_by_itself_and_counts_days_without_a_command(shared_sim, ros):
+    process, name, _ = shared_sim
     client = connect(ros, name)
     client.reset(seed=9)
+    statuses = ros_support.status_reader(ros, name)
+    client.step(2.0)  # lockstep: day 0 with a command, day 1 without (the caller's choice: counted, no warning)
+    assert raw_step(ros, name)["irrigation_mm"] == 0.0
+    ros.spin_until(lambda: statuses[-1]["day"] == 2, 10, "the status of day 2")
+    assert statuses[-1]["days_without_command"] == 1 and statuses[-1]["level"] == 0, statuses[-1]
     days = []
     ros.node.create_subscription(Float64MultiArray, f"{name}/step_result", lambda m: days.append(m.data[1]),
                                  ri.READER_QOS)
@@ -423,6 +441,13 @@ def test_free_running_mode_steps_by_itself(shared_sim, ros):
         (result,) = set_parameter(ros, name, mode="free_running")
         assert result.successful
         ros.spin_until(lambda: days and days[-1] >= 20, 20, "20 free-running days")
+        # nobody commands: every day since day 1 passed without a command; a warning, on ~/status and in the log
+        ros.spin_until(lambda: statuses[-1]["mode"] == "free_running" and statuses[-1]["day"] >= 20, 10,
+                       "the free-running status")
+        status = statuses[-1]
+        assert status["days_without_command"] == status["day"] - 1 and status["level"] == 1, status
+        assert "without a command" in status["message"]
+        assert "passed without a command" in process.output()
         step = step_client(ros, name)
         for _ in range(3):  # refused without a change of state: safe to repeat if DDS lost the first request
             try:
