@@ -14,10 +14,14 @@ from std_msgs.msg import Float32MultiArray, Float64MultiArray
 
 from crop_sim_ros import ros_interface as ri
 
-from .sim_client import UNCHANGED, SimClient
+from .sim_client import UNCHANGED, SimClient, scenario_layout
 
-POLICIES = ("zero", "constant", "best-constant", "refill", "ppo")
+POLICIES = ("zero", "constant", "best-constant", "refill", "ppo", "budget-rule", "agent")
 NODE_NAME = "crop_agent"
+
+
+class PolicyMismatch(ValueError):
+    """The policy cannot read the simulator's observation (20 values vs 29): the agent exits with status 2."""
 
 
 def _descriptor(kind, description, low=None, high=None, constraints=""):
@@ -34,7 +38,10 @@ S, D, I, B = (ParameterType.PARAMETER_STRING, ParameterType.PARAMETER_DOUBLE, Pa
 PARAMETERS = {
     "sim_node": ("/" + ri.NODE_NAME, _descriptor(S, "fully qualified name of the simulator node")),
     "policy": ("refill", _descriptor(S, "irrigation policy", constraints=" | ".join(POLICIES))),
-    "policy_file": ("", _descriptor(S, "policy ppo: Stable-Baselines3 PPO .zip ('' = the shipped ppo_benton.zip)")),
+    "policy_file": ("", _descriptor(S, "policy ppo: Stable-Baselines3 PPO .zip ('' = the shipped ppo_benton.zip); "
+                                       "policy agent: a family agent's model.zip (model.json beside it), required")),
+    "task": ("", _descriptor(S, "policy budget-rule: the family task whose tuned rule to use, e.g. benton-quota ('' "
+                                "= the simulator's scenario parameter, read at start)")),
     "constant_mm": (10.0, _descriptor(D, "policy constant: irrigation per day, mm", 0.0, 100.0)),
     "drive": (False, _descriptor(B, "run the seasons itself (reset, command, step ...) and exit")),
     "seasons": (1, _descriptor(I, "drive: number of seasons", 1, 100000)),
@@ -44,9 +51,10 @@ PARAMETERS = {
 }
 
 
-def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.0):
-    """The policy named ``kind`` from :mod:`crop_agent_ros.policies` (ValueError for an unknown name,
-    FileNotFoundError for a missing policy file)."""
+def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.0, task: str = ""):
+    """The policy named ``kind``: from :mod:`crop_agent_ros.policies`, ``budget-rule`` (the water-budget rule
+    tuned for the family task ``task``) or ``agent`` (a family agent's policy file). ValueError for an unknown
+    name or a missing parameter, FileNotFoundError for a missing policy or rule file."""
     from .policies import ConstantPolicy, make_policy  # noqa: PLC0415
 
     if kind not in POLICIES:
@@ -55,7 +63,23 @@ def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.
         return ConstantPolicy(constant_mm)
     if kind == "ppo":
         return make_policy("ppo", ppo_path=policy_file or None)
+    if kind == "budget-rule":
+        from .policies.family_tuning import tuned_rule  # noqa: PLC0415
+        return tuned_rule(task)
+    if kind == "agent":
+        if not policy_file:
+            raise ValueError("policy agent needs policy_file:=<model.zip of a family agent>")
+        from .learning.agent import LearnedPolicy  # noqa: PLC0415
+        return LearnedPolicy(policy_file)
     return make_policy(kind)
+
+
+def check_observation_size(policy, size: int, where: str) -> None:
+    """PolicyMismatch unless ``policy`` reads observations of ``size`` values."""
+    if size not in policy.observation_sizes:
+        sizes = " or ".join(map(str, policy.observation_sizes))
+        raise PolicyMismatch(f"policy {policy.name!r} reads observations of {sizes} values, but {where} has {size} "
+                             "(the paper's task: 20; a family task: 29)")
 
 
 class AgentNode(Node):
@@ -74,10 +98,35 @@ class AgentNode(Node):
             self.declare_parameter(name, default, descriptor)
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.sim = "/" + p["sim_node"].strip("/")  # fully qualified: the launch file may give "ns/crop_sim"
-        self.policy = make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"])
         self.drive_mode = bool(p["drive"])
+        self._client: SimClient | None = None
+        # budget-rule without a task: the simulator's scenario names it (built in start(), once it is read)
+        self.policy = (None if p["policy"] == "budget-rule" and not p["task"].strip()
+                       else make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"], p["task"].strip()))
         self.commands_sent = 0
-        if not self.drive_mode:
+        policy = repr(self.policy) if self.policy is not None else "budget-rule (of the simulator's scenario)"
+        self.get_logger().info(f"policy {policy}, simulator {self.sim}, "
+                               f"{'driving' if self.drive_mode else 'reacting to observations'}")
+
+    def start(self, executor) -> None:
+        """Before the first day: in drive mode, or when the policy waits for the simulator's scenario, connect to
+        the simulator (ServiceTimeout after ``timeout`` s), build the policy and check that it reads the
+        scenario's observation (PolicyMismatch). A reacting agent checks every observation's size."""
+        if self.drive_mode or self.policy is None:
+            self._client = SimClient(self, executor, self.sim, timeout=self.get_parameter("timeout").value)
+            scenario = self._client.connect()["scenario"]
+            if self.policy is None:
+                if scenario.endswith((".yaml", ".yml")) or "/" in scenario:
+                    raise ValueError(f"policy budget-rule: the simulator's scenario is the file {scenario}: name "
+                                     "the tuned task with task:=")
+                self.policy = make_agent_policy("budget-rule", task=scenario)
+                self.get_logger().info(f"policy {self.policy!r} of the simulator's scenario {scenario!r}")
+            check_observation_size(self.policy, scenario_layout(scenario).size,
+                                   f"the simulator's scenario {scenario!r}")
+            if not self.drive_mode:
+                self._client.close()
+                self._client = None
+        if not self.drive_mode:  # react from now on (the policy is built)
             self.policy.reset(None)
             self._pending: tuple[int, float] | None = None  # today's command until the simulator accepts it
             self._command = self.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_TOPIC}",
@@ -88,11 +137,10 @@ class AgentNode(Node):
                                      ri.COMMAND_QOS)
             # a command published before the simulator's subscription matched is lost: repeat it until accepted
             self.create_timer(0.2, self._repeat_pending)
-        self.get_logger().info(f"policy {self.policy!r}, simulator {self.sim}, "
-                               f"{'driving' if self.drive_mode else 'reacting to observations'}")
 
     def _on_observation(self, message: Float32MultiArray) -> None:
         obs = ri.observation_from_message(message)
+        check_observation_size(self.policy, obs.size, f"the observation of {self.sim}")
         day = int(obs[ri.OBS_DAY])
         if day == 0:
             self.policy.reset(None)
@@ -124,8 +172,7 @@ class AgentNode(Node):
         """Grow ``seasons`` seasons through the simulator; returns one summary per season."""
         seasons = self.get_parameter("seasons").value
         seed = self.get_parameter("seed").value
-        client = SimClient(self, executor, self.sim, timeout=self.get_parameter("timeout").value)
-        client.connect()  # within the timeout too: no simulator is an error after ``timeout`` seconds
+        client = self._client  # connected by start()
         summaries = []
         for k in range(seasons):
             if k == 0:
@@ -134,6 +181,7 @@ class AgentNode(Node):
                                          weather_season=UNCHANGED)
             else:
                 obs, info = client.reset(seed=None, weather_season=UNCHANGED)  # continue the stream
+            check_observation_size(self.policy, obs.size, f"the observation of {self.sim}")  # a scenario change
             self.policy.reset(None if seed < 0 else seed + k)
             water = 0.0
             total = 0.0
@@ -147,17 +195,18 @@ class AgentNode(Node):
                 total += reward
                 days += 1
                 done = terminated or truncated
-            potential = info.get("potential_yield_t_ha") or math.nan
+            # the return over the potential yield's value (as offline: info["normalized_return"])
+            potential = (info.get("potential_yield_t_ha") or math.nan) * info.get("yield_value_per_t", 1.0)
             result = {"episode": summary["episode"], "scenario": info.get("scenario"), "seed": info.get("seed"),
                       "weather": info.get("weather_source"), "policy": self.policy.name, "days": days,
                       "matured": bool(summary["terminated"]), "yield_t_ha": summary["yield_t_ha"],
-                      "irrigation_mm": water, "return": total,
+                      "irrigation_mm": water, "return": total, "reward_unit": info.get("reward_unit", "t/ha"),
                       "normalized_return": total / potential if potential else None}
             summaries.append(result)
             print("season summary: " + json.dumps(result), flush=True)
             self.get_logger().info(
                 f"season {k + 1}/{seasons} ({info.get('weather_source')}): yield {result['yield_t_ha']:.2f} t/ha, "
-                f"irrigation {water:.0f} mm, return {total:.3f} over {days} days "
+                f"irrigation {water:.0f} mm, return {total:.3f} {result['reward_unit']} over {days} days "
                 f"({'matured' if result['matured'] else 'weather ran out'})")
         client.close()
         return summaries

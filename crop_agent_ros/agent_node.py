@@ -19,14 +19,21 @@ Two ways of working:
   ``timeout`` seconds, the start included). The simulator's ``seed`` and ``weather_season`` parameters are
   set for each reset only and restored after it (:class:`~crop_agent_ros.sim_client.SimClient`).
 
-Policies (parameter ``policy``, built by :func:`crop_agent_ros.policies.make_policy`): ``zero``; ``constant``
-(``constant_mm`` mm/day); ``best-constant`` and ``refill`` (the rules tuned on generated seasons); ``ppo`` (a
-Stable-Baselines3 PPO policy file, ``policy_file``, by default the shipped
-``crop_agent_ros/policies/ppo_benton.zip``, checked against the task's spaces when it loads).
+Policies (parameter ``policy``, built by :func:`crop_agent_ros.agent.make_agent_policy`): ``zero``;
+``constant`` (``constant_mm`` mm/day); ``best-constant`` and ``refill`` (the rules tuned on generated seasons);
+``ppo`` (a Stable-Baselines3 PPO policy file, ``policy_file``, by default the shipped
+``crop_agent_ros/policies/ppo_benton.zip``, checked against the task's spaces when it loads). For the task
+family (a simulator with a family scenario, 29-value observations): ``budget-rule`` (the water-budget rule
+tuned for the family task named by ``task``; by default the simulator's ``scenario``, read at start) and
+``agent`` (a family agent trained with ``crop-sim train --task``: ``policy_file:=.../model.zip``, its
+``model.json`` beside it). The paper's policies read either observation; the family's read only 29 values:
+one that cannot read the simulator's observation is refused at start (drive mode, or a policy that reads the
+simulator's scenario), else at the first observation, with one line and exit status 2.
 
 Exit status: 0 when done, and on SIGINT or SIGTERM whenever it lands (the node stops where it is, without a
 traceback; a second signal during the shutdown is ignored); 2 when it cannot start (bad parameters, an
-unknown policy, a policy file that is missing or not for this task: one line); 1 when the simulator failed.
+unknown policy, a policy file that is missing or not for this task, a policy that cannot read the simulator's
+observation: one line); 1 when the simulator failed or did not answer within ``timeout``.
 ``agent_node --help`` prints the parameters and exits.
 """
 
@@ -94,7 +101,8 @@ def _run(argv: list[str]) -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    from .agent import NODE_NAME, AgentNode
+    from .agent import NODE_NAME, AgentNode, PolicyMismatch
+    from .ros_client import ServiceTimeout
     from .sim_client import SimError
 
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
@@ -107,12 +115,16 @@ def _run(argv: list[str]) -> int:
             return 2
         executor = SingleThreadedExecutor()
         executor.add_node(node)
-        if not node.drive_mode:
-            while True:  # bounded waits: the signal handler runs between two of them
-                executor.spin_once(timeout_sec=0.1)
         try:
+            node.start(executor)
+            if not node.drive_mode:
+                while True:  # bounded waits: the signal handler runs between two of them
+                    executor.spin_once(timeout_sec=0.1)
             node.drive(executor)
-        except (SimError, TimeoutError) as error:
+        except (PolicyMismatch, ValueError, FileNotFoundError) as error:  # the policy for another task: one line
+            node.get_logger().fatal(f"cannot run: {type(error).__name__}: {error}")
+            return 2
+        except (SimError, TimeoutError, ServiceTimeout) as error:
             node.get_logger().error(f"season aborted: {error}")
             return 1
         return 0

@@ -19,6 +19,13 @@ the simulator applies and steps at once), the answer on ``~/step_result`` and ``
 service), about two round trips. See :mod:`crop_agent_ros.sim_client` and ``python -m
 crop_agent_ros.ros_bench``. One bridge per simulator node: a second client stepping the same
 simulator is detected (the day it gets back is not the day it expected) and raises.
+
+Family tasks (``scenario="benton-quota"``, or a simulator started with one): the observation space is the
+scenario's layout (29 values, :mod:`crop_sim_ros.task.layout`), read from the scenario (the bridge's
+``scenario``, else the simulator's ``scenario`` parameter) when the bridge is made; a reset whose observation
+has another size (the simulator's scenario was changed behind the bridge) raises SimError. Rewards are in the
+scenario's unit (USD/ha), and ``info["irrigation_applied_mm"]`` is what the capacity and the quota let through
+(``irrigation_clipped`` when it differs from the request), as offline.
 """
 
 from __future__ import annotations
@@ -29,10 +36,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from crop_sim_ros.task import core
-
 from .ros_client import PrivateRos
-from .sim_client import SimClient, SimError
+from .sim_client import SimClient, SimError, scenario_layout
 
 __all__ = ["RosIrrigationEnv", "SimError"]
 
@@ -47,7 +52,6 @@ class RosIrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
                  max_irrigation_mm: float = 100.0, connect_timeout: float = 30.0, timeout: float = 10.0,
                  verify_topics: bool = False, node_name: str | None = None, via: str = "topic"):
         self.action_space = gym.spaces.Box(0.0, max_irrigation_mm, (1,), np.float32)
-        self.observation_space = gym.spaces.Box(core.OBSERVATION_LOW, core.OBSERVATION_HIGH, dtype=np.float32)
         self._max_mm = float(max_irrigation_mm)
         self._scenario_parameters = {}
         if scenario is not None:
@@ -58,10 +62,12 @@ class RosIrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
         try:
             self.client = SimClient(self._ros.node, self._ros.executor, sim_node, timeout=timeout,
                                     verify_topics=verify_topics, via=via)
-            self.client.connect(connect_timeout)
+            values = self.client.connect(connect_timeout)
+            self.layout = scenario_layout(scenario if scenario is not None else values["scenario"])
         except BaseException:
             self._ros.close()
             raise
+        self.observation_space = gym.spaces.Box(self.layout.low, self.layout.high, dtype=np.float32)
         self._closed = False
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -74,6 +80,9 @@ class RosIrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
         if info.get("max_irrigation_mm", self._max_mm) != self._max_mm:
             raise SimError(f"the simulator's irrigation limit is {info['max_irrigation_mm']} mm, this bridge's "
                            f"action space ends at {self._max_mm} mm: pass max_irrigation_mm=")
+        if obs.shape != self.observation_space.shape:
+            raise SimError(f"the simulator's observation has {obs.size} values, this bridge's space "
+                           f"{self.layout.size}: its scenario changed since the bridge was made; make a new bridge")
         return obs, info
 
     def step(self, action):
@@ -87,7 +96,8 @@ class RosIrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
         if self.client.ended:
             raise RuntimeError("the season has ended (terminated or truncated); call reset()")
         obs, reward, terminated, truncated, info = self.client.step(applied)
-        info = dict(info, irrigation_requested_mm=requested, irrigation_clipped=applied != requested)
+        info = dict(info, irrigation_requested_mm=requested, irrigation_applied_mm=info["irrigation_mm"],
+                    irrigation_clipped=info["irrigation_mm"] != requested)
         return obs, reward, terminated, truncated, info
 
     def close(self) -> None:

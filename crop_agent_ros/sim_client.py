@@ -21,6 +21,12 @@ the caller's node and executor (one thread; no background spinning), with ``call
 ``reset`` leaves the simulator's parameters as their user set them: the per-reset ``seed`` and
 ``weather_season`` it asks for are set for that one reset, and their previous values restored right after.
 
+Family tasks: the observation has the scenario's layout (29 values; :func:`scenario_layout` tells it from the
+simulator's ``scenario`` parameter before a reset, :attr:`SimClient.layout` after one), and the simulator
+applies min(command, capacity, quota left): a step whose irrigation is below the command is accepted when
+the season's farm terms (the reset's ``farm_terms``) have a capacity below the action bound or a quota, and
+refused as someone else's command otherwise.
+
 A command published before the two endpoints have matched is lost; :meth:`connect` waits for the matching
 and the client republishes after ``ack_timeout`` (harmless: the latest command of a day counts, a stepping
 command for a day already stepped is refused).
@@ -30,8 +36,10 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import time
 from collections import deque
+from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -42,6 +50,7 @@ from std_msgs.msg import Float64MultiArray
 from std_srvs.srv import Trigger
 
 from crop_sim_ros import ros_interface as ri
+from crop_sim_ros.task.layout import PAPER, ObservationLayout, layout_of_size
 
 from .ros_client import ServiceTimeout, call, spin_until, wait_for_service
 
@@ -51,6 +60,20 @@ UNCHANGED = object()  # reset(): leave this simulator parameter as it is
 
 class SimError(RuntimeError):
     """The simulator refused a request (the message says why)."""
+
+
+def scenario_layout(scenario: str) -> ObservationLayout:
+    """The observation layout of the simulator's ``scenario`` parameter (a built-in name, or a YAML file read on
+    this machine): the paper's 20 values or the family's 29. ValueError for an unknown name; only the task's
+    terms are read (no weather file is looked for)."""
+    from crop_sim_ros.task.scenario import SCENARIO_DIR, load_scenario, scenario_names  # noqa: PLC0415
+
+    name = scenario.strip()
+    if name.endswith((".yaml", ".yml")) or os.sep in name:
+        return load_scenario(Path(name).expanduser()).layout
+    if name not in scenario_names():
+        raise ValueError(f"unknown scenario {name!r}; known: {', '.join(scenario_names())}")
+    return load_scenario(SCENARIO_DIR / f"{name}.yaml").layout
 
 
 class SimClient:
@@ -93,6 +116,8 @@ class SimClient:
         self.day = 0
         self.ended = True
         self.max_irrigation_mm = math.inf
+        self.layout: ObservationLayout = PAPER  # of the current season (from the reset's observation)
+        self.limited = False  # the season's capacity or quota may cut a command (from the reset's farm terms)
         self.last_response: dict = {}
         self.retries = 0
 
@@ -165,7 +190,8 @@ class SimClient:
         uses the simulator's own seed parameter; likewise ``weather_season`` (None: drawn). The seed and
         season apply to this reset only: the simulator's parameters are restored right after it.
         ``parameters`` (crop, scenario, ...) are set for good.
-        Returns (observation float32 (20,), info dict: the simulator's reset summary)."""
+        Returns (observation float32 (20,) or (29,): see :attr:`layout`, info dict: the simulator's reset
+        summary)."""
         this_reset = {}
         if seed is not UNCHANGED:
             this_reset["seed"] = -1 if seed is None else int(seed)
@@ -182,7 +208,12 @@ class SimClient:
             self._set({name: previous[name] for name in changed})
         self.episode, self.day, self.ended = summary["episode"], summary["day"], False
         self.max_irrigation_mm = float(summary.get("max_irrigation_mm", math.inf))
-        return self._observation(summary), summary
+        terms = summary.get("farm_terms") or {}
+        self.limited = terms.get("quota_mm", None) is not None or terms.get("capacity_mm_per_day",
+                                                                              math.inf) < self.max_irrigation_mm
+        obs = self._observation(summary)
+        self.layout = layout_of_size(obs.size)
+        return obs, summary
 
     def step(self, mm: float):
         """Irrigate ``mm`` today and advance one day.
@@ -198,8 +229,7 @@ class SimClient:
         if summary["episode"] != self.episode or summary["day"] != self.day + 1:
             raise SimError(f"{self.sim}: expected episode {self.episode} day {self.day + 1}, got episode "
                            f"{summary['episode']} day {summary['day']} (another client is stepping this simulator)")
-        if summary["irrigation_mm"] != mm:
-            raise SimError(f"{self.sim}: day {self.day} was irrigated {summary['irrigation_mm']} mm, not {mm} mm")
+        self._check_applied(self.day, summary["irrigation_mm"], mm)
         self.day = summary["day"]
         terminated, truncated = bool(summary["terminated"]), bool(summary["truncated"])
         self.ended = terminated or truncated
@@ -244,8 +274,7 @@ class SimClient:
                     raise ServiceTimeout(f"{self.sim} did not step day {day} within {self.timeout:.1f} s") from None
                 self.retries += 1
         r, obs = found["result"], found["obs"]
-        if r[2] != mm:
-            raise SimError(f"{self.sim}: day {day} was irrigated {r[2]} mm, not {mm} mm")
+        self._check_applied(day, r[2], mm)
         terminated, truncated = r[4] == 1.0, r[5] == 1.0
         summary = {"episode": episode, "day": day + 1, "irrigation_mm": r[2], "reward": r[3], "return": r[7],
                    "terminated": terminated, "truncated": truncated, "yield_t_ha": r[6],
@@ -254,6 +283,11 @@ class SimClient:
         self.day = day + 1
         self.ended = terminated or truncated
         return obs, float(r[3]), terminated, truncated, summary
+
+    def _check_applied(self, day: int, applied: float, mm: float) -> None:
+        """SimError unless the day got ``mm``, or less when the season's capacity or quota may cut it."""
+        if applied != mm and not (self.limited and 0.0 <= applied < mm):
+            raise SimError(f"{self.sim}: day {day} was irrigated {applied} mm, not {mm} mm")
 
     def command(self, mm: float) -> dict:
         """Publish today's command and wait until the simulator has accepted it; returns its status."""

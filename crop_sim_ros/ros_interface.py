@@ -14,22 +14,31 @@ Name                                 Type                           Content
 ``~/step`` (service)                 std_srvs/Trigger               advance one day; message = JSON summary
 ``~/reset`` (service)                std_srvs/Trigger               new season (parameters ``scenario``,
                                                                     ``seed``, ...); message = JSON summary
-``~/observation``                    std_msgs/Float32MultiArray     the 20-value observation, float32 exactly
-                                                                    as the Gymnasium env gives it
+``~/observation``                    std_msgs/Float32MultiArray     the observation, float32 exactly as the
+                                                                    Gymnasium env gives it: 20 values (the
+                                                                    paper's task) or 29 (a family task), the
+                                                                    labels from the scenario's layout
+``~/farm_terms``                     std_msgs/Float64MultiArray     at each reset: [episode, tuber price
+                                                                    USD/t, water cost USD/mm, event cost USD,
+                                                                    quota mm, capacity mm/d] (see below)
 ``~/biomass``                        std_msgs/Float64MultiArray     [day, noisy biomass t/ha]
-``~/paw``                            std_msgs/Float64MultiArray     [day, noisy plant-available water mm]
+``~/paw``                            std_msgs/Float64MultiArray     [day, noisy plant-available water mm];
+                                                                    NaN when the day has no reading
 ``~/weather/today``                  std_msgs/Float64MultiArray     [day, TMAX, TMIN, TAVG, RAIN, SRAD, CO2,
                                                                     VAP, WIND] of the day
 ``~/weather/forecast``               std_msgs/Float64MultiArray     [day + 1, the same 8, noisy forecast]
 ``~/step_result``                    std_msgs/Float64MultiArray     [episode, day, irrigation mm, reward,
                                                                     terminated, truncated, yield t/ha,
-                                                                    return, command sequence]
+                                                                    return, command sequence]; reward and
+                                                                    return in the scenario's unit
 ``/clock``                           rosgraph_msgs/Clock            farm time: sowing date 00:00 UTC + day
 ``~/irrigation`` (subscribed)        std_msgs/Float64MultiArray     command [day, mm] or [day, mm, episode]
 ``~/irrigation_step`` (subscribed)   std_msgs/Float64MultiArray     the same command, and step at once
                                                                     (lockstep): one round trip per day
 ``~/irrigation_status``              diagnostic_msgs/DiagnosticStatus  each command's fate: level OK
-                                                                    (accepted) or ERROR (rejected, why)
+                                                                    (accepted) or ERROR (rejected, why);
+                                                                    WARN after a step whose command the
+                                                                    capacity or the quota cut
 ``~/status``                         diagnostic_msgs/DiagnosticStatus  the node's state and counters: days
                                                                     without a command, commands received /
                                                                     accepted / rejected, season-log rows
@@ -42,7 +51,21 @@ values in order with their units, e.g. ``day[d],biomass_t_ha[t/ha]``. Values tha
 (biomass, PAW, today's weather, forecast) are the observation's float32 values widened to float64, so they
 equal the observation exactly.
 
-QoS (explicit, see the constants below): the state topics (observation, biomass, paw, weather,
+The observation's layout is the scenario's (:mod:`crop_sim_ros.task.layout`): the paper's 20 values, or the
+task family's 29 (the same 20, then prices, quota left, days left, capacity, whether PAW was read, yesterday's
+irrigation, ET0). A scenario change at a reset changes the size and labels of the next observation; readers
+take the layout from the message's size (:func:`observation_from_message`). In a family task the PAW sensor
+may miss a day (``paw_observed`` 0, the observation's PAW 0): ``~/paw`` then carries NaN, not a reading.
+
+Reward units (``~/step_result``, the JSON's ``reward_unit``): the paper's task pays t/ha (dry yield at
+harvest minus ``irrigation_cost_per_mm`` x mm; labels ``reward[1]``, ``return[1]`` as ever); a family task
+pays net return in USD/ha (labels ``reward[USD/ha]``, ``return[USD/ha]``). ``~/farm_terms`` (latched)
+gives the season's terms, drawn at each reset: the fresh tuber price (USD/t), water cost (delivered water +
+pumping energy, USD per mm on one ha), the fixed cost of a day with irrigation (USD/ha), the season's water
+quota (mm; +inf = none) and the most the system applies in a day (mm/d; the action bound when unlimited).
+A paper-task scenario has no money terms: price, water cost and event cost are NaN there.
+
+QoS (explicit, see the constants below): the state topics (observation, farm_terms, biomass, paw, weather,
 step_result, status) are reliable + transient_local with depth 1, so a subscriber that joins late still
 gets the latest day. ``/clock`` has the QoS of ROS time sources (best effort, volatile, depth 1: what rclpy's
 and rclcpp's ``use_sim_time`` subscribe with), so a node that starts later reads farm time from the next
@@ -63,7 +86,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float32MultiArray, Float64MultiArray, MultiArrayDimension
 
-from .task.core import BIOMASS, FORECAST, OBSERVATION_NAMES, OBSERVATION_SIZE, OBSERVATION_UNITS, PAW, TODAY
+from .task.layout import BIOMASS, DAY, FORECAST, PAPER, PAW, PAW_OBSERVED, TODAY, ObservationLayout, layout_of_size
 
 NODE_NAME = "crop_sim"
 
@@ -75,6 +98,7 @@ PAW_TOPIC = "paw"
 WEATHER_TODAY_TOPIC = "weather/today"
 WEATHER_FORECAST_TOPIC = "weather/forecast"
 STEP_RESULT_TOPIC = "step_result"
+FARM_TERMS_TOPIC = "farm_terms"
 IRRIGATION_TOPIC = "irrigation"
 IRRIGATION_STEP_TOPIC = "irrigation_step"
 IRRIGATION_STATUS_TOPIC = "irrigation_status"
@@ -111,10 +135,10 @@ LATCHED_READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliab
 SERVICE_CLIENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.VOLATILE)
 
-# Observation layout: the task's own names and units (crop_sim_ros.task.core), as "name[unit]" labels.
-OBSERVATION_LABELS = tuple(f"{name}[{unit}]" for name, unit in zip(OBSERVATION_NAMES, OBSERVATION_UNITS))
-OBS_SIZE = OBSERVATION_SIZE  # 20
-OBS_BIOMASS, OBS_DAY, OBS_TODAY, OBS_FORECAST, OBS_PAW = BIOMASS, 2, TODAY, FORECAST, PAW
+# Observation labels: the layout's names and units (crop_sim_ros.task.layout), "name[unit]": the paper's task
+# has PAPER's 20, a family task EXTENDED's 29 (layout.labels). Columns both share (EXTENDED starts with PAPER):
+OBSERVATION_LABELS = PAPER.labels
+OBS_BIOMASS, OBS_DAY, OBS_TODAY, OBS_FORECAST, OBS_PAW, OBS_PAW_OBSERVED = BIOMASS, DAY, TODAY, FORECAST, PAW, PAW_OBSERVED
 
 BIOMASS_LABELS = ("day[d]", OBSERVATION_LABELS[BIOMASS])
 PAW_LABELS = ("day[d]", OBSERVATION_LABELS[PAW])
@@ -122,6 +146,11 @@ WEATHER_TODAY_LABELS = ("day[d]",) + OBSERVATION_LABELS[TODAY]
 WEATHER_FORECAST_LABELS = ("for_day[d]",) + OBSERVATION_LABELS[FORECAST]
 STEP_RESULT_LABELS = ("episode[1]", "day[d]", "irrigation[mm]", "reward[1]", "terminated[0/1]",
                       "truncated[0/1]", "yield[t/ha]", "return[1]", "command_sequence[1]")
+# A family task's reward and return are net return in USD/ha (crop_sim_ros.task.terms).
+FAMILY_STEP_RESULT_LABELS = tuple(label.replace("[1]", "[USD/ha]") if label.startswith(("reward", "return"))
+                                  else label for label in STEP_RESULT_LABELS)
+FARM_TERMS_LABELS = ("episode[1]", "tuber_price_usd_per_t[USD/t]", "water_cost_usd_per_mm[USD/mm]",
+                     "event_cost_usd[USD]", "quota_mm[mm]", "capacity_mm_per_day[mm/d]")
 IRRIGATION_LABELS = ("day[d]", "irrigation[mm]", "episode[1]")
 
 STATUS_NAME = "crop_sim/irrigation"
@@ -145,21 +174,34 @@ def float64_array(labels, values) -> Float64MultiArray:
 
 
 def observation_message(observation) -> Float32MultiArray:
-    """The observation (20 float32) as a Float32MultiArray; the values are not re-rounded."""
+    """The observation (20 or 29 float32: the layout of its size) as a Float32MultiArray labelled with that
+    layout; the values are not re-rounded. ValueError for a size no layout has."""
     message = Float32MultiArray()
-    _layout(message, OBSERVATION_LABELS)
+    _layout(message, layout_of_size(len(observation)).labels)
     message.data = observation  # a float32 numpy array is copied as-is (no float64 round trip)
     return message
 
 
-def observation_from_message(message):
-    """Float32MultiArray -> (20,) float32 numpy array, bit for bit."""
+def observation_from_message(message, layout: ObservationLayout | None = None):
+    """Float32MultiArray -> float32 numpy array of 20 or 29 values, bit for bit. ValueError for a size no layout
+    has, or (``layout`` given) another size than that layout's."""
     import numpy as np  # noqa: PLC0415
 
     values = np.asarray(message.data, dtype=np.float32)
-    if values.shape != (OBS_SIZE,):
-        raise ValueError(f"observation message has {values.size} values, expected {OBS_SIZE}")
+    if layout is not None and values.shape != (layout.size,):
+        raise ValueError(f"observation message has {values.size} values, expected {layout.size}")
+    if layout is None:
+        layout_of_size(values.size)  # ValueError names the sizes that exist
     return values
+
+
+def observation_layout(message) -> ObservationLayout:
+    """The layout of an observation message (by its size); ValueError for a size no layout has."""
+    return layout_of_size(len(message.data))
+
+
+def step_result_labels(family_task: bool) -> tuple[str, ...]:
+    return FAMILY_STEP_RESULT_LABELS if family_task else STEP_RESULT_LABELS
 
 
 def observation_list(observation) -> list[float]:
@@ -184,21 +226,26 @@ def clock_message(sowing: date, day: int) -> Clock:
     return Clock(clock=sim_time(sowing, day))
 
 
-def status_message(accepted: bool, text: str, day, mm, sequence: int, current_day: int) -> DiagnosticStatus:
-    """The fate of one irrigation command (values as repr strings: they parse back to the same floats)."""
-    return DiagnosticStatus(
-        level=DiagnosticStatus.OK if accepted else DiagnosticStatus.ERROR, name=STATUS_NAME, message=text,
-        hardware_id="", values=[KeyValue(key="day", value=repr(day)), KeyValue(key="irrigation_mm", value=repr(mm)),
-                                KeyValue(key="sequence", value=str(sequence)),
-                                KeyValue(key="current_day", value=str(current_day)),
-                                KeyValue(key="accepted", value="true" if accepted else "false")])
+def status_message(accepted: bool, text: str, day, mm, sequence: int, current_day: int,
+                   applied_mm: float | None = None) -> DiagnosticStatus:
+    """The fate of one irrigation command (values as repr strings: they parse back to the same floats). With
+    ``applied_mm`` (after the step: the capacity or the quota cut the command), level WARN and the mm applied."""
+    level = (DiagnosticStatus.ERROR if not accepted else DiagnosticStatus.OK if applied_mm is None
+             else DiagnosticStatus.WARN)
+    values = [KeyValue(key="day", value=repr(day)), KeyValue(key="irrigation_mm", value=repr(mm)),
+              KeyValue(key="sequence", value=str(sequence)), KeyValue(key="current_day", value=str(current_day)),
+              KeyValue(key="accepted", value="true" if accepted else "false")]
+    if applied_mm is not None:
+        values.append(KeyValue(key="applied_mm", value=repr(applied_mm)))
+    return DiagnosticStatus(level=level, name=STATUS_NAME, message=text, hardware_id="", values=values)
 
 
 def status_values(message: DiagnosticStatus) -> dict:
-    """DiagnosticStatus of a command -> {"day", "irrigation_mm", "sequence", "current_day", "accepted", "message"}."""
+    """DiagnosticStatus of a command -> {"day", "irrigation_mm", "sequence", "current_day", "accepted", "message",
+    "applied_mm" (NaN unless the status reports a cut command)}."""
     values = {kv.key: kv.value for kv in message.values}
     out = {"accepted": values.get("accepted") == "true", "message": message.message}
-    for key in ("day", "irrigation_mm"):
+    for key in ("day", "irrigation_mm", "applied_mm"):
         try:
             out[key] = float(values.get(key, "nan"))
         except ValueError:

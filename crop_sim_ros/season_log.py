@@ -8,7 +8,9 @@
   a writer without the rule above) before the first append; :attr:`SeasonLog.repaired_bytes` says how much.
 
 Columns (:data:`LOG_COLUMNS`): when and by which run, the scenario and season, the observation the day started
-with, the command and irrigation applied, the reward, the day's water fluxes and the true state at its end.
+with (every column of the family's layout, by name: a paper task leaves the 9 extra ones empty), the command,
+the irrigation requested and applied, the reward and its unit, the day's water fluxes, the true state at its
+end and the season's farm terms (``term_*``, as on the simulator's ``~/farm_terms``).
 Rows end with CRLF, the csv module's default, as logs of earlier versions do.
 """
 
@@ -21,15 +23,19 @@ from pathlib import Path
 
 import numpy as np
 
-from .task.core import OBSERVATION_NAMES
+from .task.layout import EXTENDED
 
-OBS_COLUMNS = tuple(f"obs_{name}" for name in OBSERVATION_NAMES)
+OBS_COLUMNS = tuple(f"obs_{name}" for name in EXTENDED.names)  # EXTENDED starts with the paper's 20
+TERM_COLUMNS = ("term_tuber_price_usd_per_t", "term_water_cost_usd_per_mm", "term_event_cost_usd", "term_quota_mm",
+                "term_capacity_mm_per_day")
 LOG_COLUMNS = (("wall_time_utc", "run_id", "episode", "scenario", "seed", "weather_season", "day", "date")
                + OBS_COLUMNS
-               + ("command_sequence", "irrigation_mm", "reward", "episode_return", "terminated", "truncated",
+               + ("command_sequence", "irrigation_requested_mm", "irrigation_mm", "reward", "reward_unit",
+                  "episode_return", "terminated", "truncated",
                   "rain_mm", "runoff_mm", "drainage_mm", "transpiration_mm", "et0_mm", "arid",
                   "end_true_biomass_t_ha", "end_true_paw_mm", "end_thermal_time_degc_d", "end_fsolar",
-                  "end_yield_t_ha", "end_mature", "potential_yield_t_ha", "normalized_return"))
+                  "end_yield_t_ha", "end_mature", "potential_yield_t_ha", "normalized_return")
+               + TERM_COLUMNS)
 HEADER_LINE = ",".join(LOG_COLUMNS)
 _HEADER_READ_BYTES = 64 * 1024  # more than the header line: a longer first line is not our header
 _TAIL_READ_BYTES = 64 * 1024  # read from the end at a time, looking for the last line break

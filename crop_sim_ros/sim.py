@@ -26,9 +26,10 @@ from std_msgs.msg import Float32MultiArray, Float64MultiArray
 from std_srvs.srv import Trigger
 
 from . import ros_interface as ri
-from .season_log import SeasonLog, log_path_problem
+from .season_log import TERM_COLUMNS, SeasonLog, log_path_problem
 from .sim_node import MODES, NODE_NAME, PARAMETERS, ParameterSpec
 from .task import IrrigationEnv, ObservationNoise, Scenario, get_scenario, load_scenario
+from .task.layout import PAPER, layout_of_size
 
 # Parameters that define the environment (a change rebuilds it at the next reset).
 ENV_PARAMETERS = ("scenario", "data_dir", "crop", "cultivar", "soil", "co2_ppm", "noise_scale",
@@ -239,10 +240,11 @@ class SimNode(Node):
         self._pub_today = self.create_publisher(Float64MultiArray, "~/" + ri.WEATHER_TODAY_TOPIC, ri.STATE_QOS)
         self._pub_forecast = self.create_publisher(Float64MultiArray, "~/" + ri.WEATHER_FORECAST_TOPIC, ri.STATE_QOS)
         self._pub_result = self.create_publisher(Float64MultiArray, "~/" + ri.STEP_RESULT_TOPIC, ri.STATE_QOS)
+        self._pub_terms = self.create_publisher(Float64MultiArray, "~/" + ri.FARM_TERMS_TOPIC, ri.STATE_QOS)
         self._pub_clock = self.create_publisher(Clock, ri.CLOCK_TOPIC, ri.CLOCK_QOS)
         self._pub_status = self.create_publisher(DiagnosticStatus, "~/" + ri.IRRIGATION_STATUS_TOPIC, ri.COMMAND_QOS)
         self._pub_node_status = self.create_publisher(DiagnosticStatus, "~/" + ri.STATUS_TOPIC, ri.STATE_QOS)
-        self._msg_obs = ri.observation_message(np.zeros(ri.OBS_SIZE, np.float32))
+        self._msg_obs = ri.observation_message(np.zeros(PAPER.size, np.float32))  # relabelled at each reset
         self._msg_biomass = ri.float64_array(ri.BIOMASS_LABELS, (0, 0))
         self._msg_paw = ri.float64_array(ri.PAW_LABELS, (0, 0))
         self._msg_today = ri.float64_array(ri.WEATHER_TODAY_LABELS, [0] * 9)
@@ -451,6 +453,9 @@ class SimNode(Node):
                 return False, {"error": f"{type(error).__name__}: {error}", "episode": self._episode,
                                "day": self._day}
             terminated, truncated, reward = bool(terminated), bool(truncated), float(reward)
+            requested, applied = info["irrigation_requested_mm"], info["irrigation_applied_mm"]
+            if applied < requested:  # the capacity or the quota cut the command (it was within the action bound)
+                self._report_cut(day, requested, applied, sequence)
             self._obs = obs
             self._day = int(info["day"])
             self._return = float(info["episode_return"])
@@ -464,7 +469,8 @@ class SimNode(Node):
                         "counted on ~/status)", throttle_duration_sec=1.0)
             log_error = self._write_log_row(
                 {**self._log_common(day, obs_before),
-                 "command_sequence": sequence, "irrigation_mm": info["irrigation_applied_mm"], "reward": reward,
+                 "command_sequence": sequence, "irrigation_mm": applied, "irrigation_requested_mm": requested,
+                 "reward": reward,
                  "episode_return": info["episode_return"], "terminated": terminated, "truncated": truncated,
                  **{k: info[k] for k in ("rain_mm", "runoff_mm", "drainage_mm", "transpiration_mm", "et0_mm",
                                          "arid", "potential_yield_t_ha", "normalized_return")},
@@ -485,10 +491,30 @@ class SimNode(Node):
             summary = {"episode": self._episode, "day": self._day, "date": info["date"],
                        "irrigation_mm": info["irrigation_applied_mm"], "reward": reward, "return": self._return,
                        "terminated": terminated, "truncated": truncated, "yield_t_ha": yield_t_ha,
-                       "command_sequence": sequence, "observation": ri.observation_list(obs)}
+                       "command_sequence": sequence, "irrigation_requested_mm": requested,
+                       "reward_unit": self._env.scenario.reward_unit, "observation": ri.observation_list(obs)}
             if log_error:
                 summary["log_error"] = log_error
             return True, summary
+
+    def _report_cut(self, day: int, requested: float, applied: float, sequence: int) -> None:
+        """~/irrigation_status (level WARN): the day's command was cut by the system's daily capacity or by the
+        season's quota left."""
+        params = self._env.params
+        why = (f"the irrigation capacity of {params.capacity_mm_per_day:g} mm/d"
+               if applied == params.capacity_mm_per_day else
+               f"the season's quota of {self._terms[3]:g} mm ({applied:g} mm were left)")
+        text = f"cut: {applied:g} of the {requested:g} mm commanded for day {day} applied, by {why}"
+        self._pub_status.publish(ri.status_message(True, text, day, requested, sequence, day + 1, applied_mm=applied))
+
+    def _season_terms(self, info: dict) -> tuple[float, ...]:
+        """The season's farm terms in FARM_TERMS_LABELS order, without the episode (see ros_interface)."""
+        params, max_mm = self._env.params, float(self._env.scenario.max_irrigation_mm)
+        capacity = min(float(params.capacity_mm_per_day), max_mm)
+        if not self._env.scenario.is_family_task:  # no money terms: the reward is in t/ha
+            return (math.nan, math.nan, math.nan, math.inf, capacity)
+        return (float(info["yield_value_per_t"]) * params.dry_matter_fraction, float(info["water_cost_per_mm"]),
+                float(params.event_cost), float(info["quota_mm"]), capacity)
 
     def _write_log_row(self, row: dict, day: int) -> str | None:
         """Append the day's row to the season log; None, or why it could not be written (the day stands; the
@@ -517,8 +543,10 @@ class SimNode(Node):
         row = {"wall_time_utc": datetime.now(timezone.utc).isoformat(timespec="milliseconds"), "run_id": self._run_id,
                "episode": self._episode, "scenario": self._env.scenario.name,
                "seed": "" if self._seed_used is None else self._seed_used, "weather_season": self._info_season,
-               "day": day, "date": (self._sowing + timedelta(days=day)).isoformat()}
-        row.update({f"obs_{name}": float(value) for name, value in zip(ri.OBSERVATION_NAMES, obs)})
+               "day": day, "date": (self._sowing + timedelta(days=day)).isoformat(),
+               "reward_unit": self._env.scenario.reward_unit}
+        row.update({f"obs_{name}": float(value) for name, value in zip(layout_of_size(len(obs)).names, obs)})
+        row.update(zip(TERM_COLUMNS, self._terms))
         return row
 
     # --- reset -------------------------------------------------------------------------------------------
@@ -575,12 +603,21 @@ class SimNode(Node):
             self._return = 0.0
             self._pending = None
             self._days_without_command = 0
+            self._terms = self._season_terms(info)
+            family = env.scenario.is_family_task
+            self._msg_obs = ri.observation_message(obs)  # the layout's labels (20 or 29 values)
+            self._msg_result = ri.float64_array(ri.step_result_labels(family), [0] * len(ri.STEP_RESULT_LABELS))
+            self._pub_terms.publish(ri.float64_array(ri.FARM_TERMS_LABELS, (self._episode, *self._terms)))
             self._publish(0.0, 0.0, False, False, 0.0, -1)
             self._publish_status()
             summary = {"episode": self._episode, "day": self._day, "date": info["date"],
                        "scenario": env.scenario.name, "seed": self._seed_used, "weather_season": info["season"],
                        "weather_source": info["weather_source"], "max_irrigation_mm": self._max_mm,
-                       "potential_yield_t_ha": info["potential_yield_t_ha"], "observation": ri.observation_list(obs)}
+                       "potential_yield_t_ha": info["potential_yield_t_ha"], "reward_unit": env.scenario.reward_unit,
+                       "yield_value_per_t": float(info["yield_value_per_t"]),
+                       "farm_terms": {label.split("[")[0]: (value if math.isfinite(value) else None)
+                                      for label, value in zip(ri.FARM_TERMS_LABELS[1:], self._terms)},
+                       "observation_size": len(obs), "observation": ri.observation_list(obs)}
             self.get_logger().info(f"episode {self._episode}: {env.scenario.name}, weather {info['weather_source']}, "
                                    f"sown {info['date']}, seed {self._seed_used}")
             return True, summary
@@ -617,7 +654,9 @@ class SimNode(Node):
         wide = obs.astype(np.float64).tolist()
         self._msg_biomass.data = [float(day), wide[ri.OBS_BIOMASS]]
         self._pub_biomass.publish(self._msg_biomass)
-        self._msg_paw.data = [float(day), wide[ri.OBS_PAW]]
+        # a family task's missing reading (paw_observed 0: a dropout, or no sensor) is NaN, not a PAW of 0 mm
+        read = len(wide) == PAPER.size or wide[ri.OBS_PAW_OBSERVED] > 0.5
+        self._msg_paw.data = [float(day), wide[ri.OBS_PAW] if read else math.nan]
         self._pub_paw.publish(self._msg_paw)
         self._msg_today.data = [float(day), *wide[ri.OBS_TODAY]]
         self._pub_today.publish(self._msg_today)

@@ -35,9 +35,21 @@ the same way and, if accepted, the day is stepped at once (one topic round trip 
 ``~/step_result`` and ``~/observation``; a repeated message cannot step twice, its day being past by then).
 
 The ``~/step`` response (std_srvs/Trigger) message is a JSON summary of the new day: episode, day, date,
-irrigation_mm, reward, return, terminated, truncated, yield_t_ha, command_sequence and the observation (the
+irrigation_mm (applied), irrigation_requested_mm, reward, return, reward_unit (``t/ha`` for the paper's task,
+``USD/ha`` for a family task), terminated, truncated, yield_t_ha, command_sequence and the observation (the
 float32 values as exact decimals), and ``log_error`` if the day's row could not be written to the season
-log; ``~/reset`` answers likewise (episode, day 0, scenario, seed, weather, observation). A refusal is
+log; ``~/reset`` answers likewise (episode, day 0, scenario, seed, weather, reward_unit, farm_terms: the
+season's terms as on ``~/farm_terms``, null for none, observation_size and the observation).
+
+Family tasks
+------------
+A family scenario (``scenario:=benton-quota``, any built-in family task or a YAML file with ``economics`` or
+``limits``) serves the family's task: the observation has 29 values (labels from its layout), rewards are net
+return in USD/ha, and ``~/farm_terms`` carries the season's drawn price, water cost, quota and capacity at
+each reset. The irrigation applied is min(command, capacity, quota left): a command the capacity or the
+quota cut is accepted, and after its step ``~/irrigation_status`` says so (level WARN, with the mm applied).
+A scenario change between the paper's task and a family task takes effect at the next reset: every topic
+then carries the new layout. A refusal is
 ``success: false`` with ``{"error": ...}``; the state is then unchanged.
 
 Commands, steps, resets and the free-running timer all run on one single-threaded executor, and every
@@ -50,8 +62,9 @@ right after the callback has returned (so the caller waiting for the step waits 
 Season log
 ----------
 One CSV row per simulated day (:mod:`crop_sim_ros.season_log`: appended, written through at every row, never
-torn): the observation the day started with, the irrigation applied, the reward, the day's water fluxes and
-the true state at the end of the day. A restarted node first removes a torn last line (a row cut short by a
+torn): the observation the day started with (the family's 9 extra columns empty for a paper task), the
+irrigation commanded and applied, the reward and its unit, the day's water fluxes, the true state at the end
+of the day and the season's farm terms (``term_*``: nan where a paper task has none, inf = no quota). A restarted node first removes a torn last line (a row cut short by a
 crash), then appends under a new ``run_id``. If a row cannot be written (a full disk), the day still counts:
 the caller is told (``log_error``), the failure is logged and counted on ``~/status`` (level ERROR), and the
 file keeps its last whole row.
@@ -114,7 +127,9 @@ PARAMETERS = {
                              "-1 or 0..5000"),
     "noise_scale": ParameterSpec(1.0, "factor on every observation noise standard deviation of the scenario "
                                       "(0 = exact observations)", 0.0, 100.0),
-    "irrigation_cost_per_mm": ParameterSpec(-1.25e-4, "reward per mm irrigated (C_I; <= 0)", -1.0, 0.0),
+    "irrigation_cost_per_mm": ParameterSpec(-1.25e-4, "reward per mm irrigated (C_I; <= 0); the paper's task "
+                                                      "only: a family task's water cost is its scenario's",
+                                            -1.0, 0.0),
     "mode": ParameterSpec("lockstep", "lockstep: one day per ~/step call; free_running: the node steps by "
                                       "itself, days_per_second days per second of wall time (~/step is then "
                                       "refused)", constraints=" | ".join(MODES)),
