@@ -430,9 +430,11 @@ def test_clock_has_the_time_source_qos_and_a_late_use_sim_time_node_follows_it(s
 
 
 def test_a_burst_of_commands_is_queued_not_dropped_and_counted(sim, ros):
-    """1,000 commands published back to back by a client with the usual depth-10 publisher: the simulator's
-    keep-all subscription takes every one (it once kept 90 of 1,000), each is answered on ~/irrigation_status,
-    ~/status counts them, and the day gets the last one."""
+    """1,000 commands published back to back: the simulator's keep-all subscription takes every one (with depth
+    10 it kept 90 of 1,000), each is answered on ~/irrigation_status, ~/status counts them, and the day gets the
+    last one. The client publishes keep-all too, as the README asks of a client that sends bursts: a depth-10
+    publisher dropped most of its own burst on a loaded machine before the simulator could take it (10 and 168
+    of 1,000 arrived in 2 of 6 runs with the other core busy), which the counter on ~/status makes visible."""
     _, name, _ = sim
     client = connect(ros, name)
     client.reset(seed=6)
@@ -442,16 +444,20 @@ def test_a_burst_of_commands_is_queued_not_dropped_and_counted(sim, ros):
     answers = []
     answer_sub = ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
                                               lambda m: answers.append(ri.status_values(m)), ri.COMMAND_SUBSCRIPTION_QOS)
-    publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/{ri.IRRIGATION_TOPIC}", ri.COMMAND_QOS)
+    publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/{ri.IRRIGATION_TOPIC}",
+                                          ri.COMMAND_SUBSCRIPTION_QOS)
     ros.spin_until(lambda: publisher.get_subscription_count() >= 1 and answer_sub.get_publisher_count() >= 1, 20,
                    "the command topics")
     n = 1000
     amounts = [float(i % 97) for i in range(n)]
     for mm in amounts:
         publisher.publish(ri.irrigation_command(0, mm, client.episode))
-    ros.spin_until(lambda: statuses[-1]["commands_received"] >= received_before + n, 30, "every command counted")
+    try:
+        ros.spin_until(lambda: statuses[-1]["commands_received"] >= received_before + n, 30, "every command counted")
+    except TimeoutError:
+        pass
     status = statuses[-1]
-    assert status["commands_received"] == received_before + n
+    assert status["commands_received"] == received_before + n, (status["commands_received"] - received_before, status)
     ros.spin_until(lambda: len(answers) >= n, 30, "an answer to every command")
     assert [a["sequence"] for a in answers] == list(range(received_before + 1, received_before + n + 1))
     assert all(a["accepted"] for a in answers) and [a["irrigation_mm"] for a in answers] == amounts
