@@ -16,6 +16,8 @@ import yaml
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
 from crop_sim_ros import ros_interface as ri  # noqa: E402
+from crop_sim_ros.task import IrrigationEnv  # noqa: E402
+from crop_sim_ros.task.layout import EXTENDED, PAPER  # noqa: E402
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "msg_examples"
 FILES = sorted(EXAMPLES.glob("*.yaml"))
@@ -28,6 +30,7 @@ INTERFACE = {
     "/crop_sim/weather/today": ("topic", "std_msgs/msg/Float64MultiArray", ri.WEATHER_TODAY_LABELS),
     "/crop_sim/weather/forecast": ("topic", "std_msgs/msg/Float64MultiArray", ri.WEATHER_FORECAST_LABELS),
     "/crop_sim/step_result": ("topic", "std_msgs/msg/Float64MultiArray", ri.STEP_RESULT_LABELS),
+    "/crop_sim/farm_terms": ("topic", "std_msgs/msg/Float64MultiArray", ri.FARM_TERMS_LABELS),
     "/crop_sim/irrigation": ("topic", "std_msgs/msg/Float64MultiArray", ri.IRRIGATION_LABELS[:2]),
     "/crop_sim/irrigation_step": ("topic", "std_msgs/msg/Float64MultiArray", ri.IRRIGATION_LABELS),
     "/crop_sim/irrigation_status": ("topic", "diagnostic_msgs/msg/DiagnosticStatus", None),
@@ -119,7 +122,7 @@ def test_example_fills_the_real_type(path):
             assert dim.label == ",".join(labels) and dim.size == len(labels) == len(first.data)
         if type_name.endswith("Float32MultiArray"):
             obs = ri.observation_from_message(first)
-            assert obs.dtype == np.float32 and obs.shape == (ri.OBS_SIZE,)
+            assert obs.dtype == np.float32 and obs.shape == (PAPER.size,)
         if type_name.endswith("DiagnosticStatus"):
             status = ri.status_values(first)
             assert status["accepted"] and status["day"] == 1.0 and status["irrigation_mm"] == 12.5
@@ -133,11 +136,27 @@ def test_example_fills_the_real_type(path):
         summary = json.loads(response.message)
         assert summary["day"] >= 0 and summary["episode"] >= 1
         observation = np.asarray(summary["observation"], dtype=np.float32)
-        assert observation.shape == (ri.OBS_SIZE,) and observation[ri.OBS_DAY] == summary["day"]
+        assert observation.shape == (PAPER.size,) and observation[ri.OBS_DAY] == summary["day"]
         assert np.array_equal(observation.astype(np.float64), summary["observation"]), "exact float32 values"
         if "failure_response" in example:
             failure = fill(cls.Response(), example["failure_response"], "failure_response")
             assert not failure.success and "error" in json.loads(failure.message)
+
+
+def test_family_examples_are_a_benton_quota_season():
+    """The family observation and the farm terms examples: benton-quota, seed 0, day 1 after 20 mm (the
+    pivot's 8 mm applied), as the offline environment gives them; labels from the extended layout."""
+    env = IrrigationEnv("benton-quota")
+    env.reset(seed=0)
+    obs, _, _, _, info = env.step(20.0)
+    family = fill(interface_class("std_msgs/msg/Float32MultiArray")(),
+                  yaml.safe_load((EXAMPLES / "observation.yaml").read_text())["family_message"])
+    assert family.layout.dim[0].label == ",".join(EXTENDED.labels) and family.layout.dim[0].size == 29
+    assert ri.observation_from_message(family, EXTENDED).tobytes() == obs.tobytes()
+    terms = yaml.safe_load((EXAMPLES / "farm_terms.yaml").read_text())["message"]["data"]
+    assert terms[1:] == [info["yield_value_per_t"] * env.scenario.economics.tuber_dry_matter_fraction,
+                         info["water_cost_per_mm"], 0.0, info["quota_mm"], 8.0]
+    assert info["irrigation_applied_mm"] == 8.0 and obs[EXTENDED.index("irrigation_yesterday_mm")] == 8.0
 
 
 def test_filler_rejects_unknown_fields_and_bad_types():
