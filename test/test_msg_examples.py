@@ -34,6 +34,7 @@ INTERFACE = {
     "/crop_sim/irrigation": ("topic", "std_msgs/msg/Float64MultiArray", ri.IRRIGATION_LABELS[:2]),
     "/crop_sim/irrigation_step": ("topic", "std_msgs/msg/Float64MultiArray", ri.IRRIGATION_LABELS),
     "/crop_sim/irrigation_status": ("topic", "diagnostic_msgs/msg/DiagnosticStatus", None),
+    "/crop_sim/status": ("topic", "diagnostic_msgs/msg/DiagnosticStatus", None),
     "/clock": ("topic", "rosgraph_msgs/msg/Clock", None),
     "/crop_sim/step": ("service", "std_srvs/srv/Trigger", None),
     "/crop_sim/reset": ("service", "std_srvs/srv/Trigger", None),
@@ -123,7 +124,11 @@ def test_example_fills_the_real_type(path):
         if type_name.endswith("Float32MultiArray"):
             obs = ri.observation_from_message(first)
             assert obs.dtype == np.float32 and obs.shape == (PAPER.size,)
-        if type_name.endswith("DiagnosticStatus"):
+        if example["name"] == "/crop_sim/status":
+            status = ri.node_status_values(first)
+            assert set(ri.NODE_STATUS_KEYS) <= {kv.key for kv in first.values}
+            assert status["level"] == 1 and status["days_without_command"] == status["day"] - 1
+        elif type_name.endswith("DiagnosticStatus"):
             status = ri.status_values(first)
             assert status["accepted"] and status["day"] == 1.0 and status["irrigation_mm"] == 12.5
         if example["name"] in ("/crop_sim/irrigation", "/crop_sim/irrigation_step"):
