@@ -99,17 +99,16 @@ def test_oracle_returns_at_least_the_water_budget_rule_on_the_same_terms(quota_t
 
 
 def test_searches_from_different_starts_end_close_together(quota_task):
-    """The full search from the dynamic programme's plan, the family's best and the uniform spread of the
-    quota: three different starts end within 0.2 % of each other (measured: 0.001-0.08 % here)."""
+    """The search (to 1/4 mm) from the dynamic programme's plan, the family's best and the uniform spread of
+    the quota: three different starts end within 0.2 % of each other (measured: 0.03 %)."""
     scenario, contexts = quota_task
-    seasons = np.array([8, 10])
-    terms = {"yield_value_per_t": np.array([1000.0, 1300.0]), "water_cost_per_mm": np.array([1.5, 2.0]),
-             "quota_mm": np.array([300.0, 400.0])}
-    problems = problems_of(scenario, contexts, seasons, terms)
-    for r in fo.plan_fields(problems, starts=("plan", "family", "uniform")):
-        ends = np.array(list(r.start_returns.values()))
-        assert r.return_value == pytest.approx(ends.max(), rel=1e-12)
-        assert (ends.max() - ends.min()) / ends.max() < 0.002, r.start_returns
+    terms = {"yield_value_per_t": np.array([1000.0]), "water_cost_per_mm": np.array([1.5]),
+             "quota_mm": np.array([300.0])}
+    problems = problems_of(scenario, contexts, np.array([8]), terms)
+    result = fo.plan_fields(problems, starts=("plan", "family", "uniform"), finest_step_mm=0.25)[0]
+    ends = np.array(list(result.start_returns.values()))
+    assert result.return_value == pytest.approx(ends.max(), rel=1e-12)
+    assert (ends.max() - ends.min()) / ends.max() < 0.002, result.start_returns
 
 
 def test_upper_bounds_hold_and_are_tight_without_a_quota(quota_task):
@@ -152,9 +151,9 @@ def test_family_oracle_matches_the_paper_oracle_on_the_paper_prices():
     from crop_agent_ros.policies.oracle import find_best_schedule
     context = season_contexts("benton-generated")[0]
     problem = fo.FieldProblem(context, 1.0, 1.25e-4, np.inf, 100.0)
-    ours = fo.plan_fields([problem], starts=("family",), first_step_mm=8.0, finest_step_mm=0.5,
-                          max_rounds_per_step=10)[0]
-    paper = find_best_schedule(context, finest_step_mm=0.5, max_rounds_per_step=10)
+    budget = {"first_step_mm": 8.0, "finest_step_mm": 1.0, "max_rounds_per_step": 6}
+    ours = fo.plan_fields([problem], starts=("family",), **budget)[0]
+    paper = find_best_schedule(context, **budget)
     assert ours.return_value == pytest.approx(paper.return_value, rel=1e-3)
 
 
