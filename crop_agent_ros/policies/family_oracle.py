@@ -745,15 +745,16 @@ def report(problems: list[FieldProblem], bound_step_mm: float = 0.25, log=print)
     uniform = plan_fields(problems, starts=("uniform",))
     rows = []
     for p, o, u in zip(problems, oracle, uniform):
+        scale = max(abs(o.return_value), 1.0)
         row = {"field": p.context.name, "quota_mm": p.quota_mm, "return": o.return_value, "start": o.start,
-               "family_vs_plan_pct": 100.0 * (o.start_returns["family"] - o.start_returns["plan"]) / abs(o.return_value),
-               "uniform_vs_oracle_pct": 100.0 * (u.return_value - o.return_value) / abs(o.return_value),
-               "potential_gap_pct": 100.0 * (o.potential_bound - o.return_value) / abs(o.return_value),
+               "family_vs_plan_pct": 100.0 * (o.start_returns["family"] - o.start_returns["plan"]) / scale,
+               "uniform_vs_oracle_pct": 100.0 * (u.return_value - o.return_value) / scale,
+               "potential_gap_pct": 100.0 * (o.potential_bound - o.return_value) / scale,
                "seconds_per_field": seconds}
         if bound_step_mm > 0:
             bound = upper_bound(p, water_step_mm=bound_step_mm).bound
             row["bound"] = bound
-            row["bound_gap_pct"] = 100.0 * (bound - o.return_value) / abs(o.return_value)
+            row["bound_gap_pct"] = 100.0 * (bound - o.return_value) / scale
         rows.append(row)
     log(f"{'field':<22}{'quota mm':>9}{'return':>11}{'start':>7}{'fam-plan%':>10}{'unif-or%':>10}"
         f"{'bound%':>8}{'potent%':>8}")
