@@ -354,3 +354,14 @@ def test_runs_of_another_task_or_repeated_seeds_are_refused(trained_run, tmp_pat
         shutil.copytree(trained_run, tmp_path / name)
     with pytest.raises(UsageError, match=r"training seeds \[0, 0\] repeat"):
         et.agent_runs([f"ppo={tmp_path}/[ab]-s0"], TASK)
+
+
+def test_crop_sim_evaluate_task_runs_from_the_command_line(evaluation, trained_run, tmp_path):
+    """``crop-sim evaluate --task`` reaches the protocol and exits 0 (after ``evaluation`` tuned the rule)."""
+    from crop_agent_ros.cli import main
+    out = tmp_path / "cli"
+    status = main(["evaluate", "--task", TASK, "--agents", f"ppo={trained_run}", "--no-oracle", "--no-curves",
+                   "--noise-seeds", "1", "--far-seasons", "2", "--sets", "far-benton", "--bootstrap", "100",
+                   "--out", str(out)])
+    assert status == 0
+    assert {r["policy"] for r in rows_of(out)} >= {"budget-rule", "ppo"}
