@@ -111,9 +111,10 @@ STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=Rel
 # Commands and command status: every message matters, none is replayed to a late joiner.
 COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
-# The simulator's command subscriptions: keep every command until the node takes it. With depth 10 a burst
-# was overwritten while the node was busy (90 of 1,000 commands arrived); keep-all readers acknowledge at
-# once, so a publisher's own depth-10 queue empties as fast as it fills.
+# The simulator's command subscriptions: keep every command until the node takes it (with depth 10, 69 of a
+# burst of 1,000 arrived in a run here: the rest were overwritten while the node was busy). A publisher's own
+# depth-10 queue can still drop a burst that outruns delivery on a loaded machine: a client that sends bursts
+# publishes with this QoS too.
 COMMAND_SUBSCRIPTION_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                                       durability=DurabilityPolicy.VOLATILE)
 # /clock: what ROS time sources subscribe with (rclpy's TimeSource and rclcpp's ClockQoS: best effort,
