@@ -368,7 +368,20 @@ def train(args) -> dict:
     return config
 
 
+# Upper bounds of what a user may ask of training (refused above them with one line, exit 2).
+MAX_TIMESTEPS = 1_000_000_000
+MAX_TRAINING_FIELDS = 100_000
+
+
 def run(args) -> int:
+    from crop_sim_ros.usage import UsageError
+    for name, value, high in (("--timesteps", args.timesteps, MAX_TIMESTEPS), ("--n-envs", args.n_envs, MAX_TRAINING_FIELDS),
+                              ("--n-steps", args.n_steps, 100_000), ("--batch-size", args.batch_size, 10_000_000),
+                              ("--eval-freq", args.eval_freq, MAX_TIMESTEPS),
+                              ("--validation-seasons", args.validation_seasons, 10_000),
+                              ("--history", getattr(args, "history", 1), 365)):
+        if not 1 <= value <= high:
+            raise UsageError(f"{name} {value}: must be in 1..{high:,}")
     if args.task is not None:
         from .learning.train_task import train_task
         train_task(args)

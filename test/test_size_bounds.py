@@ -41,3 +41,20 @@ def test_generated_days_are_bounded_as_a_product():
 def test_sizes_at_their_bounds_are_accepted():
     assert scenario_from_dict(generated(max_season_days=MAX_SEASON_DAYS, weather={"n_seasons": 2000})).max_season_days == 730
     assert scenario_from_dict(generated(weather={"n_seasons": 10_000}, max_season_days=200)).n_seasons == 10_000
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["train", "--timesteps", "0"], "--timesteps 0: must be in 1..1,000,000,000"),
+    (["train", "--task", "benton-quota", "--n-envs", "10000000"], "--n-envs 10000000: must be in 1..100,000"),
+    (["train", "--task", "benton-quota", "--history", "0"], "--history 0: must be in 1..365"),
+])
+def test_training_sizes_have_upper_bounds(argv, message, capsys):
+    from crop_agent_ros.cli import main
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_vector_env_fields_have_an_upper_bound():
+    from crop_sim_ros.task import IrrigationVectorEnv
+    with pytest.raises(ValueError, match=r"num_envs must be in 1..1,000,000"):
+        IrrigationVectorEnv(2_000_000)

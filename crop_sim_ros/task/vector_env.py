@@ -42,6 +42,9 @@ from .env import NUMERIC_DTYPE_KINDS
 from .scenario import Scenario, get_scenario
 
 
+MAX_FIELDS = 1_000_000  # fields of one vector env: about 2 GB of working arrays
+
+
 class PrefetchedNormal:
     """Standard normal float32 draws for the observation noise, made one step ahead on a worker thread.
 
@@ -101,8 +104,9 @@ class IrrigationVectorEnv(VectorEnv):
                  noise_thread: bool | None = None):
         self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario, data_dir)
         self.num_envs = int(num_envs)
-        if self.num_envs < 1:
-            raise ValueError(f"num_envs must be >= 1, got {num_envs}")
+        if not 1 <= self.num_envs <= MAX_FIELDS:
+            raise ValueError(f"num_envs must be in 1..{MAX_FIELDS:,} (one field's state, weather gathers and noise "
+                             f"cost about 2 kB), got {num_envs}")
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         self.noise_thread = len(os.sched_getaffinity(0)) > 1 if noise_thread is None else bool(noise_thread)
         if self.autoreset_mode == AutoresetMode.DISABLED:
