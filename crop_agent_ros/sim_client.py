@@ -89,8 +89,10 @@ class SimClient:
         if not self.sim.startswith("/"):
             self.sim = "/" + self.sim
         self.timeout, self.ack_timeout, self.verify_topics = timeout, ack_timeout, verify_topics
-        self._step = node.create_client(Trigger, f"{self.sim}/{ri.STEP_SERVICE}")
-        self._reset = node.create_client(Trigger, f"{self.sim}/{ri.RESET_SERVICE}")
+        # keep-all: every client of a service receives every client's answers; a depth-10 queue loses its own
+        # answer when another client's flood arrives first (seen under load)
+        self._step = node.create_client(Trigger, f"{self.sim}/{ri.STEP_SERVICE}", qos_profile=ri.SERVICE_CLIENT_QOS)
+        self._reset = node.create_client(Trigger, f"{self.sim}/{ri.RESET_SERVICE}", qos_profile=ri.SERVICE_CLIENT_QOS)
         self._set_parameters = node.create_client(SetParameters, f"{self.sim}/set_parameters")
         self._get_parameters = node.create_client(GetParameters, f"{self.sim}/get_parameters")
         self._command = node.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_TOPIC}", ri.COMMAND_QOS)
