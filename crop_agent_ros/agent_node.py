@@ -42,6 +42,8 @@ from __future__ import annotations
 import signal
 import sys
 
+from crop_sim_ros.usage import node_arguments
+
 class StopSignal(BaseException):
     """SIGINT or SIGTERM arrived: stop where we are and exit 0. A BaseException, so that no ``except
     Exception`` on the way (ours or a library's) takes it for an error."""
@@ -74,14 +76,9 @@ def usage() -> str:
 
 def main(args: list[str] | None = None) -> int:
     argv = list(sys.argv if args is None else args)
-    ours = argv[1:argv.index("--ros-args")] if "--ros-args" in argv else argv[1:]
-    if any(a in ("-h", "--help") for a in ours):
-        print(usage())
-        return 0
-    if ours:
-        print(f"agent_node: unknown argument {ours[0]!r}; parameters go after --ros-args (see --help)",
-              file=sys.stderr)
-        return 2
+    status = node_arguments("agent_node", argv, usage)
+    if status is not None:
+        return status
     # Our own handlers, not rclpy's: rclpy's shut the context down from another thread, and whichever rclpy call
     # the main thread was in then failed with one of several errors (a traceback, status 1). They are installed
     # before rclpy, the task and the policy load (seconds), so a signal during the loading stops cleanly too.

@@ -91,6 +91,8 @@ import signal
 import sys
 from typing import NamedTuple
 
+from crop_sim_ros.usage import node_arguments
+
 NODE_NAME = "crop_sim"
 MODES = ("lockstep", "free_running")
 INT32_MAX = 2**31 - 1
@@ -175,14 +177,9 @@ class _StopRequest:
 
 def main(args: list[str] | None = None) -> int:
     argv = list(sys.argv if args is None else args)
-    ours = argv[1:argv.index("--ros-args")] if "--ros-args" in argv else argv[1:]
-    if any(a in ("-h", "--help") for a in ours):
-        print(usage())
-        return 0
-    if ours:
-        print(f"sim_node: unknown argument {ours[0]!r}; parameters go after --ros-args (see sim_node --help)",
-              file=sys.stderr)
-        return 2
+    status = node_arguments("sim_node", argv, usage)
+    if status is not None:
+        return status
     stop = _StopRequest()  # before rclpy, numpy and the task load (about a second)
     return _run(argv, stop)
 

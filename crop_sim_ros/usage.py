@@ -33,3 +33,18 @@ def user_input(what: str, errors: tuple[type[BaseException], ...] = (ValueError,
         raise
     except errors as error:
         raise UsageError(f"{what}: {one_line(error)}") from None
+
+
+def node_arguments(program: str, argv: list[str], usage) -> int | None:
+    """A ROS node's own arguments (those before ``--ros-args``): ``--help`` prints ``usage()`` (exit 0), any
+    other is one line on stderr (exit 2); None when there are none and the node should run."""
+    import sys
+    ours = argv[1:argv.index("--ros-args")] if "--ros-args" in argv else argv[1:]
+    if any(a in ("-h", "--help") for a in ours):
+        print(usage())
+        return 0
+    if ours:
+        print(f"{program}: unknown argument {ours[0]!r}; parameters go after --ros-args (see {program} --help)",
+              file=sys.stderr)
+        return EXIT_USAGE
+    return None

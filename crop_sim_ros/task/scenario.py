@@ -62,7 +62,7 @@ from ..model.et0 import ET0_METHODS
 from ..weather import GENERATOR_NAMES, Site, WeatherSeries, read_agweathernet_csv, read_dssat_wth
 from ..weather.csv_readers import read_plain_csv
 from .layout import EXTENDED, PAPER, ObservationLayout
-from .terms import Economics, FarmLimits
+from .terms import Economics, FarmLimits, check_number as _check_number
 
 # The environment variable that names the reference data directory (see default_data_dir).
 DATA_DIR_ENV = "CROP_SIM_DATA_DIR"
@@ -86,16 +86,6 @@ def _check_count(name: str, value: Any, high: int) -> None:
     if (isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating))
             or not (math.isfinite(value) and value == int(value) and 1 <= value <= high)):
         raise ValueError(f"{name}: {value!r} is not a whole number in 1..{high}")
-
-
-def _check_number(name: str, value: Any, low: float = -np.inf, high: float = np.inf) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected a number, got {value!r}") from None
-    if not (np.isfinite(number) and low <= number <= high):
-        raise ValueError(f"{name}: {value!r} is not a finite number in [{low}, {high}]")
-    return number
 
 
 @dataclass(frozen=True)

@@ -53,7 +53,8 @@ MAX_QUOTA_MM = 10_000.0
 MAX_NOMINAL_SEASON_DAYS = 366
 
 
-def _number(name: str, value: Any, low: float, high: float) -> float:
+def check_number(name: str, value: Any, low: float = -np.inf, high: float = np.inf) -> float:
+    """``value`` as a finite float in [low, high], or ValueError naming ``name``."""
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -61,6 +62,15 @@ def _number(name: str, value: Any, low: float, high: float) -> float:
     if not (np.isfinite(number) and low <= number <= high):
         raise ValueError(f"{name}: {value!r} is not a finite number in [{low:g}, {high:g}]")
     return number
+
+
+def _from_dict(cls, values: dict, where: str):
+    """``cls(**values)``, or ValueError naming the first unknown field under ``where``."""
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(f"{where}.{unknown[0]}: unknown field (known: {', '.join(sorted(known))})")
+    return cls(**values)
 
 
 @dataclass(frozen=True)
@@ -78,11 +88,11 @@ class Range:
         if isinstance(value, (list, tuple)):
             if len(value) != 2:
                 raise ValueError(f"{name}: a range is [low, high], got {value!r}")
-            a, b = (_number(name, v, low, high) for v in value)
+            a, b = (check_number(name, v, low, high) for v in value)
             if a > b:
                 raise ValueError(f"{name}: range [{a:g}, {b:g}] has low > high")
             return cls(a, b)
-        number = _number(name, value, low, high)
+        number = check_number(name, value, low, high)
         return cls(number, number)
 
     @property
@@ -116,17 +126,13 @@ class Economics:
                            ("pumping_energy_usd_per_mm", MAX_WATER_COST_USD_PER_MM)):
             object.__setattr__(self, name, Range.parse(f"economics.{name}", getattr(self, name), 0.0, high))
         object.__setattr__(self, "tuber_dry_matter_fraction",
-                           _number("economics.tuber_dry_matter_fraction", self.tuber_dry_matter_fraction, 0.05, 1.0))
+                           check_number("economics.tuber_dry_matter_fraction", self.tuber_dry_matter_fraction, 0.05, 1.0))
         object.__setattr__(self, "event_cost_usd",
-                           _number("economics.event_cost_usd", self.event_cost_usd, 0.0, MAX_EVENT_COST_USD))
+                           check_number("economics.event_cost_usd", self.event_cost_usd, 0.0, MAX_EVENT_COST_USD))
 
     @classmethod
     def from_dict(cls, values: dict) -> "Economics":
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"economics.{unknown[0]}: unknown field (known: {', '.join(sorted(known))})")
-        return cls(**values)
+        return _from_dict(cls, values, "economics")
 
 
 @dataclass(frozen=True)
@@ -144,20 +150,16 @@ class FarmLimits:
             object.__setattr__(self, "quota_mm", Range.parse("limits.quota_mm", self.quota_mm, 0.0, MAX_QUOTA_MM))
         if self.capacity_mm_per_day is not None:
             object.__setattr__(self, "capacity_mm_per_day",
-                               _number("limits.capacity_mm_per_day", self.capacity_mm_per_day, 0.0, 1000.0))
-        days = _number("limits.nominal_season_days", self.nominal_season_days, 1, MAX_NOMINAL_SEASON_DAYS)
+                               check_number("limits.capacity_mm_per_day", self.capacity_mm_per_day, 0.0, 1000.0))
+        days = check_number("limits.nominal_season_days", self.nominal_season_days, 1, MAX_NOMINAL_SEASON_DAYS)
         if days != int(days):
             raise ValueError(f"limits.nominal_season_days: {self.nominal_season_days!r} is not a whole number of days")
         object.__setattr__(self, "nominal_season_days", int(days))
         object.__setattr__(self, "paw_dropout_probability",
-                           _number("limits.paw_dropout_probability", self.paw_dropout_probability, 0.0, 1.0))
+                           check_number("limits.paw_dropout_probability", self.paw_dropout_probability, 0.0, 1.0))
         if not isinstance(self.paw_sensor, bool):
             raise ValueError(f"limits.paw_sensor: expected true or false, got {self.paw_sensor!r}")
 
     @classmethod
     def from_dict(cls, values: dict) -> "FarmLimits":
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - known)
-        if unknown:
-            raise ValueError(f"limits.{unknown[0]}: unknown field (known: {', '.join(sorted(known))})")
-        return cls(**values)
+        return _from_dict(cls, values, "limits")
