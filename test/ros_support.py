@@ -15,6 +15,8 @@ import os
 import uuid
 from pathlib import Path
 
+import pytest
+
 from crop_agent_ros.ros_process import NodeProcess, isolated_ros_env, pick_domain_id
 
 os.environ["ROS_DOMAIN_ID"] = str(pick_domain_id(salt=int(os.environ.get("PYTEST_XDIST_WORKER", "gw0")[2:] or 0)))
@@ -28,7 +30,7 @@ from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from crop_agent_ros.ros_client import call, wait_for_service  # noqa: E402
+from crop_agent_ros.ros_client import PrivateRos, call, wait_for_service  # noqa: E402
 from crop_agent_ros.sim_client import SimClient  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
 
@@ -144,3 +146,11 @@ def status_reader(ros, name) -> list[dict]:
                                  lambda m: statuses.append(ri.node_status_values(m)), ri.LATCHED_READER_QOS)
     ros.spin_until(lambda: statuses, 20, "the latched ~/status")
     return statuses
+
+
+@pytest.fixture
+def ros():
+    """A private rclpy context and node for one test (closed after it); import it into a test module to use."""
+    client = PrivateRos(f"test_client_{uuid.uuid4().hex[:8]}")
+    yield client
+    client.close()

@@ -30,7 +30,7 @@ from crop_agent_ros.ros_client import PrivateRos, call  # noqa: E402
 from crop_agent_ros.ros_process import NodeProcess, _shm_files_of, clean_dead_ports, isolated_ros_env  # noqa: E402
 from crop_agent_ros.sim_client import SimError  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
-from ros_support import connect, raw_step, set_parameter, step_client  # noqa: E402
+from ros_support import connect, raw_step, ros, set_parameter, step_client  # noqa: E402, F401 (ros: a fixture)
 
 pytestmark = pytest.mark.slow
 
@@ -42,13 +42,6 @@ def shared_sim(tmp_path_factory):
     process, name, log = ros_support.start_sim(tmp, params_file=ros_support.PARAMS_FILE)
     yield process, name, log
     assert process.stop() == 0, process.output()
-
-
-@pytest.fixture
-def ros():
-    client = PrivateRos(f"test_client_{uuid.uuid4().hex[:8]}")
-    yield client
-    client.close()
 
 
 # --- a season grown by two processes ------------------------------------------------------------------------

@@ -37,7 +37,7 @@ from crop_sim_ros import sim_node  # noqa: E402
 from crop_sim_ros.season_log import LOG_COLUMNS  # noqa: E402
 from crop_sim_ros.task import get_scenario  # noqa: E402
 from crop_sim_ros.task.scenario import find_data_dir  # noqa: E402
-from ros_support import connect, raw_step, set_parameter, status_reader  # noqa: E402
+from ros_support import connect, raw_step, ros, set_parameter, status_reader  # noqa: E402, F401 (ros: a fixture)
 
 pytestmark = pytest.mark.slow
 REPO = ros_support.REPO
@@ -50,13 +50,6 @@ def sim(tmp_path_factory):
     process, name, log = ros_support.start_sim(tmp)
     yield process, name, log
     assert process.stop() == 0, process.output()
-
-
-@pytest.fixture
-def ros():
-    client = PrivateRos(f"test_client_{uuid.uuid4().hex[:8]}")
-    yield client
-    client.close()
 
 
 def popen_sim(ros_args: list[str], out: Path, cwd: Path = REPO, env: dict | None = None,
