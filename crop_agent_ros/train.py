@@ -140,7 +140,13 @@ def feature_action_wrapper(venv, action_mode: str, feature_set: str = "full", ma
 
 
 def validation_scenario(scenario, n_seasons: int, seed: int):
-    """Fresh generated seasons: the training scenario's generator with a seed its pool does not use."""
+    """Fresh generated seasons: the training scenario's generator with a seed its pool does not use
+    (seed + 10,007 + the training seed). A mixture validates on its first part's generator, re-seeded alike."""
+    if scenario.weather.kind == "mixture":
+        from crop_sim_ros.task.scenario import get_scenario
+        first = get_scenario(scenario.weather.mixture[0], scenario.data_dir)
+        scenario = replace(scenario, sowing_date=first.sowing_date, max_season_days=first.max_season_days,
+                           weather=first.weather)
     return replace(scenario, name=f"{scenario.name}-validation",
                    weather=replace(scenario.weather, seed=scenario.weather.seed + 10_007 + seed, n_seasons=n_seasons))
 

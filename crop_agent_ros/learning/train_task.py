@@ -22,11 +22,11 @@ import csv
 import json
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from ..train import validation_scenario
 from .agent import ACTION_SCALE_MM, ALGORITHMS, DAY, History, ObservationScaler, action_to_mm
 
 REWARD_SCALE_USD = 1000.0
@@ -37,21 +37,6 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--task", default=None, help="a family task (e.g. benton-quota): trains a family agent")
     parser.add_argument("--algorithm", default="ppo", choices=ALGORITHMS)
     parser.add_argument("--history", type=int, default=1, help="observations the network sees (frame stack)")
-
-
-def validation_scenario(scenario, seed: int, n_seasons: int):
-    """Generated seasons the training pool does not hold: each generator part re-seeded (seed + 10,007)."""
-    from crop_sim_ros.task.scenario import get_scenario
-    weather = scenario.weather
-    if weather.kind == "generator":
-        return replace(scenario, name=f"{scenario.name}-validation",
-                       weather=replace(weather, seed=weather.seed + 10_007 + seed, n_seasons=n_seasons))
-    parts = [get_scenario(name, scenario.data_dir) for name in weather.mixture]
-    # a mixture validates on its first part's generator (the training pool's seeds are never reused)
-    first = parts[0]
-    return replace(scenario, name=f"{scenario.name}-validation", sowing_date=first.sowing_date,
-                   max_season_days=first.max_season_days,
-                   weather=replace(first.weather, seed=first.weather.seed + 10_007 + seed, n_seasons=n_seasons))
 
 
 def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
@@ -171,7 +156,7 @@ def train_task(args) -> dict:
         from sb3_contrib import RecurrentPPO
         model = RecurrentPPO("MlpLstmPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init,
                                                                    "lstm_hidden_size": 64}, **common)
-    validation = validation_scenario(scenario, args.seed, args.validation_seasons)
+    validation = validation_scenario(scenario, args.validation_seasons, args.seed)
     seasons = np.arange(args.validation_seasons)
     terms = draw_terms(validation, seasons, 1234)
     rule = WaterBudgetRule(FarmFacts.of_scenario(scenario))
