@@ -10,13 +10,22 @@ The headline agent is Stable-Baselines3 PPO on the **normalised raw observation*
 - action: a in [-1, 1] -> irrigation (a + 1) / 2 x ``ACTION_SCALE_MM`` mm today (the environment then
   applies capacity and quota limits, and the observation shows what was applied).
 
+The **residual variant** (action kind ``"residual"``, reported as a variant, never as the headline agent) puts
+the task's tuned water-budget rule inside the action: the rule (its parameters saved with the policy) sees
+every observation and proposes r mm; the network also sees r / ``RESIDUAL_SPAN_MM`` as one more input value
+and its action a in [-1, 1] corrects it: irrigation = clip(r + a x ``RESIDUAL_SPAN_MM``, 0, ``ACTION_SCALE_MM``)
+mm. Training starts from a zero last layer (a = 0 for every input), i.e. at the rule.
+
 The recurrent agent (sb3-contrib RecurrentPPO, an LSTM policy) sees one scaled observation per day and
-carries its memory in the LSTM state. Both are :class:`~crop_agent_ros.policies.base.BasePolicy` objects once
-loaded (:class:`LearnedPolicy`): ``reset`` clears the memory, ``act`` takes (N, 29) observations.
+carries its memory in the LSTM state. What the network sees and what its action does is one object,
+:class:`AgentInterface`, used alike by training and by the loaded policy. Both are
+:class:`~crop_agent_ros.policies.base.BasePolicy` objects once loaded (:class:`LearnedPolicy`): ``reset`` clears
+the memory (and the rule's checkbook), ``act`` takes (N, 29) observations.
 """
 
 from __future__ import annotations
 
+import copy
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,13 +37,25 @@ from crop_sim_ros.task.layout import EXTENDED
 from ..policies.base import BasePolicy
 
 ACTION_SCALE_MM = 25.0  # a = 1 asks 25 mm: above any day's need (ET0 <= ~11 mm/d), below drainage waste
+# The residual's reach: a in [-1, 1] corrects the rule by up to 10 mm either way, enough to cancel any day's
+# rule action (the rule never asks more than the pivot's 8 mm/d) or to add more than a day of a pivot's water,
+# while a unit of the action stays a few mm (the exploration noise, exp(log_std_init) x 10 mm, stays small).
+RESIDUAL_SPAN_MM = 10.0
 ALGORITHMS = ("ppo", "recurrent-ppo")
+ACTION_KINDS = ("mm", "residual")
 DAY = EXTENDED.index("days_since_sowing")
 
 
 def action_to_mm(action: np.ndarray) -> np.ndarray:
     """Network actions in [-1, 1] -> irrigation mm in [0, ACTION_SCALE_MM]."""
     return (np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0) + 1.0) * 0.5 * ACTION_SCALE_MM
+
+
+def residual_to_mm(action: np.ndarray, rule_mm: np.ndarray) -> np.ndarray:
+    """Network actions in [-1, 1] as corrections of the rule's ``rule_mm``: irrigation mm =
+    clip(rule_mm + a x RESIDUAL_SPAN_MM, 0, ACTION_SCALE_MM)."""
+    correction = np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0) * RESIDUAL_SPAN_MM
+    return np.clip(np.asarray(rule_mm, dtype=float).reshape(-1) + correction, 0.0, ACTION_SCALE_MM)
 
 
 @dataclass(frozen=True)
@@ -78,6 +99,72 @@ class History:
         return self._stack.reshape(n, -1)
 
 
+class AgentInterface:
+    """What a family agent's network sees and what its action does, for a batch of N fields (one object per
+    batch: training's environment wrapper and the loaded policy both use it).
+
+    ``observe(raw)`` takes the fields' (N, 29) observations of the day, in order, each exactly once: it pushes
+    them into the history and, for ``action_kind="residual"``, lets the ``rule`` (a
+    :class:`~crop_agent_ros.policies.family.WaterBudgetRule`) read them and propose today's mm (its checkbook
+    restarts on a field's sowing day, day 0, so fields may start new seasons at different steps); it returns
+    the network's (N, input_size) input. ``to_mm(action)`` turns the network's action for that day into mm."""
+
+    def __init__(self, scaler: ObservationScaler, history: int, action_kind: str = "mm", rule=None):
+        if action_kind not in ACTION_KINDS:
+            raise ValueError(f"action kind {action_kind!r} is not one of {', '.join(ACTION_KINDS)}")
+        if (action_kind == "residual") != (rule is not None):
+            raise ValueError("the residual action needs the rule it corrects; the mm action takes no rule")
+        self.scaler = scaler
+        self.history = History(history)
+        self.action_kind = action_kind
+        self.rule = rule
+        self._rule_mm: np.ndarray | None = None
+
+    @property
+    def input_size(self) -> int:
+        """29 values per day of history, plus the rule's proposal for the residual."""
+        return EXTENDED.size * self.history.k + (self.action_kind == "residual")
+
+    def reset(self) -> None:
+        self.history.reset()
+        self._rule_mm = None
+        if self.rule is not None:
+            self.rule.reset()
+
+    def _with_rule(self, stacked: np.ndarray, rule_mm: np.ndarray | None) -> np.ndarray:
+        if rule_mm is None:
+            return stacked
+        return np.concatenate([stacked, (rule_mm / RESIDUAL_SPAN_MM)[:, None]], axis=1).astype(np.float32)
+
+    def observe(self, raw: np.ndarray, terminal: dict[int, np.ndarray] | None = None):
+        """The network's input for the day's raw (N, 29) observations; with ``terminal`` (field -> the last
+        observation of a season that just ended, which ``raw`` replaces by the next season's first), also
+        returns the input each such last observation would have given (for bootstrapping a truncated season:
+        its own day repeated as the history, the rule's proposal from the rule's state before today)."""
+        raw = np.asarray(raw, dtype=float)
+        terminal_inputs = {}
+        if terminal:
+            rows = sorted(terminal)
+            last = raw.copy()
+            last[rows] = np.stack([np.asarray(terminal[i], dtype=float).reshape(-1) for i in rows])
+            # a copy of the rule reads the last observations, so the rule itself sees each observation once
+            rule_last = None if self.rule is None else copy.deepcopy(self.rule).act(last)
+            for i in rows:
+                repeated = np.tile(self.scaler(last[i])[0], self.history.k)[None, :]
+                terminal_inputs[i] = self._with_rule(repeated, None if rule_last is None else rule_last[[i]])[0]
+        stacked = self.history.push(self.scaler(raw), raw[:, DAY])
+        self._rule_mm = None if self.rule is None else np.asarray(self.rule.act(raw), dtype=float).reshape(-1)
+        return self._with_rule(stacked, self._rule_mm), terminal_inputs
+
+    def to_mm(self, action: np.ndarray) -> np.ndarray:
+        """The network's action for the day last observed -> irrigation mm (N,)."""
+        if self.action_kind == "mm":
+            return action_to_mm(action)
+        if self._rule_mm is None:
+            raise RuntimeError("the residual action corrects the rule's proposal: observe the day first")
+        return residual_to_mm(action, self._rule_mm)
+
+
 class LearnedPolicy(BasePolicy):
     """A family agent's policy file (``.zip`` + ``.json`` beside it) as a policy; deterministic actions."""
 
@@ -93,38 +180,54 @@ class LearnedPolicy(BasePolicy):
         self.algorithm = self.config.get("algorithm")
         if self.algorithm not in ALGORITHMS:
             raise ValueError(f"{config_file}: algorithm {self.algorithm!r} is not one of {', '.join(ALGORITHMS)}")
-        self.scaler = ObservationScaler(tuple(self.config["scaler"]["mean"]), tuple(self.config["scaler"]["std"]))
-        self.history = History(self.config.get("history", 1))
+        # policy files written before the residual variant existed have no action_kind: theirs is "mm"
+        action_kind = self.config.get("action_kind", "mm")
+        if action_kind not in ACTION_KINDS:
+            raise ValueError(f"{config_file}: action_kind {action_kind!r} is not one of {', '.join(ACTION_KINDS)}")
+        rule = None
+        if action_kind == "residual":
+            from ..policies.family_tuning import rule_from_record
+            if not isinstance(self.config.get("rule"), dict):
+                raise ValueError(f"{config_file}: action_kind 'residual' needs the rule it corrects (\"rule\": its "
+                                 "facts and parameters, as `crop-sim train --task T --action residual` writes)")
+            rule = rule_from_record(self.config["rule"])
+        scaler = ObservationScaler(tuple(self.config["scaler"]["mean"]), tuple(self.config["scaler"]["std"]))
+        self.interface = AgentInterface(scaler, self.config.get("history", 1), action_kind, rule)
         if self.algorithm == "ppo":
             from stable_baselines3 import PPO
             self.model = PPO.load(str(self.path), device="cpu")
         else:
             from sb3_contrib import RecurrentPPO
             self.model = RecurrentPPO.load(str(self.path), device="cpu")
-        expected = (EXTENDED.size * self.history.k,)
+        expected = (self.interface.input_size,)
         if self.model.observation_space.shape != expected or self.model.action_space.shape != (1,):
             raise ValueError(f"{self.path}: the network takes {self.model.observation_space.shape} and gives "
                              f"{self.model.action_space.shape}; this task needs {expected} -> (1,)")
         self.name = name
         self._lstm = None
 
+    @property
+    def history(self) -> History:
+        return self.interface.history
+
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
-        self.history.reset()
+        self.interface.reset()
         self._lstm = None
 
     def _act_batch(self, obs):
-        scaled = self.history.push(self.scaler(obs), obs[:, DAY])
+        inputs, _ = self.interface.observe(obs)
         if self.algorithm == "ppo":
-            action, _ = self.model.predict(scaled, deterministic=True)
+            action, _ = self.model.predict(inputs, deterministic=True)
         else:
             starts = obs[:, DAY] < 0.5
             if self._lstm is not None and len(self._lstm[0][0]) != len(obs):
                 self._lstm = None
-            action, self._lstm = self.model.predict(scaled, state=self._lstm, episode_start=starts,
+            action, self._lstm = self.model.predict(inputs, state=self._lstm, episode_start=starts,
                                                     deterministic=True)
-        return action_to_mm(action)
+        return self.interface.to_mm(action)
 
     def describe(self):
         return {"name": self.name, "path": str(self.path), "algorithm": self.algorithm,
-                "history": self.history.k, "trained_on": self.config.get("task")}
+                "history": self.history.k, "action_kind": self.interface.action_kind,
+                "trained_on": self.config.get("task")}

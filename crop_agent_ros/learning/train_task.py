@@ -2,7 +2,9 @@
 seasons (generated weather only; the held-out real seasons and the held-out climate are never seen).
 
 The network's observation and action are those of :mod:`crop_agent_ros.learning.agent` (normalised raw
-observation, action in mm). Training reward: the task's reward (USD/ha) divided by ``REWARD_SCALE_USD`` and
+observation, action in mm; ``--action residual``: a correction of the task's tuned rule, ``family_<task>.json``,
+whose parameters are saved with the policy, with a zero-initialised last layer so that training starts at the
+rule). Training reward: the task's reward (USD/ha) divided by ``REWARD_SCALE_USD`` and
 shaped by a potential (Ng et al. 1999), Phi(s) = the value of the yield the crop would give if harvested
 now (tuber price / dry-matter fraction x harvest index x true biomass), 0 at the season's end: the yield paid
 at harvest is spread over the days that grew it; the optimal policy is unchanged, and every evaluation
@@ -27,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..train import validation_scenario
-from .agent import ACTION_SCALE_MM, ALGORITHMS, DAY, History, ObservationScaler, action_to_mm
+from .agent import ACTION_KINDS, ACTION_SCALE_MM, ALGORITHMS, RESIDUAL_SPAN_MM, AgentInterface, ObservationScaler
 
 REWARD_SCALE_USD = 1000.0
 TRAINING_KINDS = ("generator", "mixture")
@@ -37,6 +39,9 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--task", default=None, help="a family task (e.g. benton-quota): trains a family agent")
     parser.add_argument("--algorithm", default="ppo", choices=ALGORITHMS)
     parser.add_argument("--history", type=int, default=1, help="observations the network sees (frame stack)")
+    parser.add_argument("--action", default="mm", choices=ACTION_KINDS,
+                        help="with --task: mm (the headline agent: a in [-1, 1] -> 0..25 mm) or residual (a variant: "
+                             f"the tuned rule's mm + a x {RESIDUAL_SPAN_MM:g} mm, clipped to 0..25 mm)")
 
 
 def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
@@ -55,9 +60,10 @@ def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
     return ObservationScaler.fit(np.concatenate(seen))
 
 
-def training_env(scenario, n_envs: int, seed: int, scaler: ObservationScaler, history: int, harvest_index: float,
+def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, harvest_index: float,
                  dry_matter_fraction: float):
-    """The SB3 VecEnv the network trains on (scaled history in, [-1, 1] action out, scaled shaped reward)."""
+    """The SB3 VecEnv the network trains on (``interface``'s input in, [-1, 1] action out, scaled shaped
+    reward)."""
     from gymnasium import spaces
     from stable_baselines3.common.vec_env import VecEnvWrapper
     from crop_sim_ros.task.layout import EXTENDED
@@ -68,21 +74,20 @@ def training_env(scenario, n_envs: int, seed: int, scaler: ObservationScaler, hi
     class TaskWrapper(VecEnvWrapper):
         def __init__(self):
             venv = IrrigationSB3VecEnv(n_envs, scenario, seed=seed)
-            super().__init__(venv, observation_space=spaces.Box(-10.0, 10.0, (EXTENDED.size * history,), np.float32),
+            super().__init__(venv, observation_space=spaces.Box(-10.0, 10.0, (interface.input_size,), np.float32),
                              action_space=spaces.Box(-1.0, 1.0, (1,), np.float32))
-            self.history = History(history)
 
         def _value_per_t(self, raw):
             return raw[:, price] / dry_matter_fraction
 
         def reset(self):
             raw = self.venv.reset()
-            self.history.reset()
+            interface.reset()
             self.phi = np.zeros(self.num_envs)
-            return self.history.push(scaler(raw), raw[:, DAY])
+            return interface.observe(raw)[0]
 
         def step_async(self, actions):
-            self.venv.step_async(action_to_mm(actions).reshape(-1, 1))
+            self.venv.step_async(interface.to_mm(actions).reshape(-1, 1))
 
         def step_wait(self):
             raw, rewards, dones, infos = self.venv.step_wait()
@@ -90,12 +95,13 @@ def training_env(scenario, n_envs: int, seed: int, scaler: ObservationScaler, hi
             phi = np.where(dones, 0.0, self._value_per_t(raw) * harvest_index * biomass)
             shaped = (rewards + phi - self.phi) / REWARD_SCALE_USD
             self.phi = phi
-            stacked = self.history.push(scaler(raw), raw[:, DAY])
-            for i in np.flatnonzero(dones):
-                if "terminal_observation" in infos[i]:
-                    # (bootstrapped only when the weather ran out: the last day repeated as the history)
-                    infos[i]["terminal_observation"] = np.tile(scaler(infos[i]["terminal_observation"])[0], history)
-            return stacked, shaped.astype(np.float32), dones, infos
+            # (a terminal observation is bootstrapped only when the weather ran out)
+            terminal = {i: infos[i]["terminal_observation"] for i in np.flatnonzero(dones)
+                        if "terminal_observation" in infos[i]}
+            inputs, terminal_inputs = interface.observe(raw, terminal)
+            for i, terminal_input in terminal_inputs.items():
+                infos[i]["terminal_observation"] = terminal_input
+            return inputs, shaped.astype(np.float32), dones, infos
 
     return TaskWrapper()
 
@@ -124,7 +130,7 @@ def train_task(args) -> dict:
     from crop_sim_ros.task import core
     from crop_sim_ros.task.scenario import get_scenario
     from ..policies.family import FarmFacts, WaterBudgetRule
-    from ..policies.family_tuning import draw_terms
+    from ..policies.family_tuning import draw_terms, rule_file, rule_record, tuned_rule
     from ..policies.rollout import run_episodes
     from .agent import LearnedPolicy
 
@@ -142,8 +148,16 @@ def train_task(args) -> dict:
     params = core.task_params(scenario)
     scaler = fit_scaler(scenario, args.seed)
     net_arch = [int(x) for x in str(args.net_arch).split(",") if x.strip()]
-    venv = training_env(scenario, args.n_envs, args.seed, scaler, args.history,
-                        float(params.fields.harvest_index[0]), params.dry_matter_fraction)
+    action_kind = getattr(args, "action", "mm")
+    rule = None
+    if action_kind == "residual":
+        try:
+            rule = tuned_rule(scenario.name)
+        except FileNotFoundError as error:
+            raise SystemExit(f"crop-sim train --action residual: {error}") from None
+    interface = AgentInterface(scaler, args.history, action_kind, rule)
+    venv = training_env(scenario, args.n_envs, args.seed, interface, float(params.fields.harvest_index[0]),
+                        params.dry_matter_fraction)
     lr0, lr1 = args.learning_rate, args.final_learning_rate
     common = dict(learning_rate=lambda progress: lr1 + (lr0 - lr1) * progress, n_steps=args.n_steps,
                   batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma, gae_lambda=args.gae_lambda,
@@ -156,14 +170,27 @@ def train_task(args) -> dict:
         from sb3_contrib import RecurrentPPO
         model = RecurrentPPO("MlpLstmPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init,
                                                                    "lstm_hidden_size": 64}, **common)
+    if action_kind == "residual":
+        # Start at the rule: a zero last layer gives a = 0 (no correction) for every input, so the deterministic
+        # policy at step 0 is the tuned rule; the layer's gradient is not zero, so it (and then the hidden
+        # layers behind it) learn from the first update.
+        with torch.no_grad():
+            model.policy.action_net.weight.zero_()
+            model.policy.action_net.bias.zero_()
     validation = validation_scenario(scenario, args.validation_seasons, args.seed)
     seasons = np.arange(args.validation_seasons)
     terms = draw_terms(validation, seasons, 1234)
-    rule = WaterBudgetRule(FarmFacts.of_scenario(scenario))
-    rule_return = float(run_episodes(rule, validation, seasons, seed=1000, terms=terms).episode_return.mean())
+    default_rule = WaterBudgetRule(FarmFacts.of_scenario(scenario))
+    rule_return = float(run_episodes(default_rule, validation, seasons, seed=1000, terms=terms).episode_return.mean())
+    # the residual's starting point (a separate rule object: the training environment's keeps its own state)
+    tuned_rule_return = (None if rule is None else float(run_episodes(
+        tuned_rule(scenario.name), validation, seasons, seed=1000, terms=terms).episode_return.mean()))
     config = {"task": scenario.name, "algorithm": args.algorithm, "history": args.history, "seed": args.seed,
-              "timesteps": args.timesteps, "n_envs": args.n_envs, "net_arch": net_arch,
-              "action": f"a in [-1, 1] -> (a + 1) / 2 x {ACTION_SCALE_MM:g} mm",
+              "timesteps": args.timesteps, "n_envs": args.n_envs, "net_arch": net_arch, "action_kind": action_kind,
+              "action": (f"a in [-1, 1] -> (a + 1) / 2 x {ACTION_SCALE_MM:g} mm" if rule is None else
+                         f"a in [-1, 1] -> clip(the rule's mm + a x {RESIDUAL_SPAN_MM:g} mm, 0, {ACTION_SCALE_MM:g} mm); "
+                         f"the network also sees the rule's mm / {RESIDUAL_SPAN_MM:g}"),
+              **({} if rule is None else {"rule": {**rule_record(rule), "file": rule_file(scenario.name).name}}),
               "scaler": {"mean": list(scaler.mean), "std": list(scaler.std)},
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",
               "hyper_parameters": {k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "n_steps",
@@ -210,8 +237,9 @@ def train_task(args) -> dict:
                    "validation_minus_default_rule": float(episodes.episode_return.mean() - rule_return),
                    "validation_water_mm": float(episodes.water_mm.mean())}
             rows.append(row)
+            tuned = "" if tuned_rule_return is None else f", tuned rule {tuned_rule_return:.1f}"
             print(f"[{row['timesteps']:>9}] {row['wall_s']:>6.0f} s  validation return {row['validation_return']:.1f}"
-                  f" (default rule {rule_return:.1f}), water {row['validation_water_mm']:.0f} mm",
+                  f" (default rule {rule_return:.1f}{tuned}), water {row['validation_water_mm']:.0f} mm",
                   file=sys.stderr, flush=True)
 
     callback = Curve()
@@ -226,6 +254,7 @@ def train_task(args) -> dict:
     selected = select_model(out)
     summary = {**config, "steps_run": int(model.num_timesteps), "selected": selected, "training_wall_s": round(training_s, 1),
                "total_wall_s": round(time.perf_counter() - launched, 1), "default_rule_validation_return": rule_return,
+               **({} if tuned_rule_return is None else {"tuned_rule_validation_return": tuned_rule_return}),
                "final": rows[-1], "command": "crop-sim " + " ".join(sys.argv[1:])}
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     print(f"ran {model.num_timesteps} steps ({args.timesteps} asked) in {training_s:.0f} s of training, "

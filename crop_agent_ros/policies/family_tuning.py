@@ -127,15 +127,29 @@ def tuned_rule(task: str, scenario=None) -> WaterBudgetRule:
     path = rule_file(task)
     if not path.exists():
         raise FileNotFoundError(f"{path} is missing: run `crop-sim tune-rule --task {task}`")
-    tuned = json.loads(path.read_text())
-    facts = FarmFacts(**tuned["facts"])
-    params = {k: (np.inf if v is None else v) for k, v in tuned["parameters"].items()}
-    return WaterBudgetRule(facts, params, name="budget-rule")
+    return rule_from_record(json.loads(path.read_text()))
+
+
+def _json_parameters(parameters: dict) -> dict:
+    """Rule parameters for JSON: an infinite value ("never") is null."""
+    return {k: (None if not np.isfinite(v) else float(v)) for k, v in parameters.items()}
+
+
+def rule_record(rule: WaterBudgetRule) -> dict:
+    """A (scalar-parameter) rule as JSON: its ``facts`` and ``parameters`` (null = inf), as in family_<task>.json."""
+    return {"facts": {"capacity_mm": rule.facts.capacity_mm, "tsum_degc_d": rule.facts.tsum_degc_d},
+            "parameters": _json_parameters({k: float(v) for k, v in rule.parameters.items()})}
+
+
+def rule_from_record(record: dict) -> WaterBudgetRule:
+    """The rule of a record with ``facts`` and ``parameters`` (family_<task>.json, or :func:`rule_record`)."""
+    params = {k: (np.inf if v is None else v) for k, v in record["parameters"].items()}
+    return WaterBudgetRule(FarmFacts(**record["facts"]), params, name="budget-rule")
 
 
 def write_tuned(task: str, result: dict) -> Path:
     path = rule_file(task)
-    plain = {**result, "parameters": {k: (None if not np.isfinite(v) else v) for k, v in result["parameters"].items()}}
+    plain = {**result, "parameters": _json_parameters(result["parameters"])}
     path.write_text(json.dumps(plain, indent=1) + "\n")
     return path
 
