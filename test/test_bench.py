@@ -89,3 +89,45 @@ def test_vector_env_noise_on_the_main_thread_gives_the_same_values():
     # by default: the thread only when this process may use a second CPU
     assert on_one_cpu(lambda: IrrigationVectorEnv(4).noise_thread)[1] is False
     assert IrrigationVectorEnv(4).noise_thread == (len(os.sched_getaffinity(0)) > 1)
+
+
+# Sums over 300 fields x 200 days (every field matures once and autoresets), computed with the vector
+# environment as it was before its speed work (commit 1eff249): per observation column, then rewards,
+# terminations, truncations and rain_mm infos. Speed work must leave every number the environment produces
+# unchanged; any change of the noise stream, the observation values or the rewards moves these sums by far
+# more than the tolerance (which only allows for another machine's floating point).
+_VECTOR_ENV_SUMS = {
+    "benton-generated": (
+        [359452.4362136978, 45827327.70283266, 3770862.0, 1548338.1556196213, 560033.0182009998, 1054185.586911559,
+         36590.838615596294, 1289260.675264351, 22250700.0, 556080.7363862991, 110761.76035810262,
+         1553390.9048080444, 565198.4322493179, 1059670.8134230375, 100170.00538547424, 1293474.8662901223,
+         22250416.918945312, 558108.4078919888, 207229.08940532804, 6719804.535186768],
+        [5132.051223911765, 300.0, 0.0, 36352.91593882425]),
+    "benton-quota": (
+        [211114.68895155418, 37101275.975444384, 3259430.0, 1521246.0764939785, 548601.0138944995,
+         1034923.5451208949, 39949.769457638264, 1300050.794522196, 22250700.0, 547759.096241951, 114064.99728421122,
+         1527552.1345607042, 554854.1697051665, 1041331.3007422686, 102918.31685580165, 1305514.9266686775,
+         22250285.268798828, 550078.5571670532, 209955.52995111048, 4689633.560750917, 13544700.369262695,
+         102924.62451195717, 0.0, 5606628.2816395555, 5785570.0, 482400.0, 60300.0, 176972.38869673616,
+         286167.66602867673],
+        [3570708.0596256116, 300.0, 0.0, 39743.58956119615]),
+}
+
+
+@pytest.mark.parametrize("scenario, mode", [("benton-generated", "NEXT_STEP"), ("benton-quota", "SAME_STEP")])
+def test_vector_env_numbers_are_those_from_before_its_speed_work(scenario, mode):
+    from gymnasium.vector import AutoresetMode
+    from crop_sim_ros.task.vector_env import IrrigationVectorEnv
+    fields = 300
+    env = IrrigationVectorEnv(fields, scenario, autoreset_mode=AutoresetMode[mode], noise_thread=False)
+    obs, _ = env.reset(seed=11)
+    actions = np.random.default_rng(3)
+    obs_sums = obs.astype(np.float64).sum(axis=0)
+    totals = np.zeros(4)
+    for _ in range(200):
+        obs, rewards, terminated, truncated, infos = env.step(actions.uniform(0, 12, (fields, 1)).astype(np.float32))
+        obs_sums += obs.astype(np.float64).sum(axis=0)
+        totals += [rewards.sum(), terminated.sum(), truncated.sum(), infos["rain_mm"].sum()]
+    expected_obs, expected_totals = _VECTOR_ENV_SUMS[scenario]
+    np.testing.assert_allclose(obs_sums, expected_obs, rtol=1e-9)
+    np.testing.assert_allclose(totals, expected_totals, rtol=1e-9)
