@@ -125,13 +125,20 @@ class Rate(NamedTuple):
 
 def best_rate(run_once, work: float, repeats: int) -> Rate:
     """The best of ``repeats`` calls of ``run_once()`` (each doing ``work`` units), by wall and by CPU time."""
-    wall, cpu = np.inf, np.inf
+    return interleaved_best_rates({"run": (run_once, work)}, repeats)["run"]
+
+
+def interleaved_best_rates(runs: dict, repeats: int) -> dict[str, Rate]:
+    """``runs``: name -> (run_once, work). Calls each ``run_once()`` in turn, ``repeats`` rounds (so every
+    figure sees the same moments' load), and returns each one's best by wall and by CPU time."""
+    wall, cpu = dict.fromkeys(runs, np.inf), dict.fromkeys(runs, np.inf)
     for _ in range(repeats):
-        start, start_cpu = time.perf_counter(), time.process_time()
-        run_once()
-        wall = min(wall, time.perf_counter() - start)
-        cpu = min(cpu, time.process_time() - start_cpu)
-    return Rate(work / wall, work / max(cpu, 1e-9))
+        for name, (run_once, _) in runs.items():
+            start, start_cpu = time.perf_counter(), time.process_time()
+            run_once()
+            wall[name] = min(wall[name], time.perf_counter() - start)
+            cpu[name] = min(cpu[name], time.process_time() - start_cpu)
+    return {name: Rate(work / wall[name], work / max(cpu[name], 1e-9)) for name, (_, work) in runs.items()}
 
 
 def bench_model(n_fields: int, repeats: int = 3, seed: int = 0, seasons: int = 1) -> Rate:
@@ -174,7 +181,8 @@ def bench_scalar(repeats: int = 3, seed: int = 0, seasons: int = 1) -> Rate:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--fields", type=int, default=10_000, help="fields in the batched run (default 10000)")
+    parser.add_argument("--fields", type=int, default=10_000,
+                        help="fields in the batched model and vector environment runs (default 10000)")
     parser.add_argument("--repeats", type=int, default=3, help="best of this many seasons (default 3)")
     parser.add_argument("--model-only", action="store_true", help="skip the environment benchmarks")
 
@@ -201,6 +209,6 @@ def run(args: argparse.Namespace) -> int:
     measured(f"N = {args.fields} (batched)", lambda: bench_model(args.fields, args.repeats))
     if not args.model_only:
         from .task.bench import bench_env  # the environment layer; imported only when asked for
-        bench_env()
+        bench_env(num_fields=args.fields, repeats=args.repeats)
     print(f"machine after the run: load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0

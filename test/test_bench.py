@@ -131,3 +131,30 @@ def test_vector_env_numbers_are_those_from_before_its_speed_work(scenario, mode)
     expected_obs, expected_totals = _VECTOR_ENV_SUMS[scenario]
     np.testing.assert_allclose(obs_sums, expected_obs, rtol=1e-9)
     np.testing.assert_allclose(totals, expected_totals, rtol=1e-9)
+
+
+def test_interleaved_rates_take_turns_and_keep_each_best(monkeypatch):
+    calls = []
+    clock = iter(np.arange(0.0, 100.0, 1.0))  # every clock reading 1 s after the one before
+    monkeypatch.setattr(bench.time, "perf_counter", lambda: next(clock))
+    monkeypatch.setattr(bench.time, "process_time", lambda: 0.5 * len(calls))  # 0.5 CPU s per call
+    rates = bench.interleaved_best_rates({"a": (lambda: calls.append("a"), 10.0),
+                                          "b": (lambda: calls.append("b"), 30.0)}, repeats=3)
+    assert calls == ["a", "b"] * 3
+    # each run: wall readings one apart -> 1 s; CPU 0.5 s
+    assert rates["a"] == pytest.approx(bench.Rate(10.0, 20.0)) and rates["b"] == pytest.approx(bench.Rate(30.0, 60.0))
+
+
+def test_bench_env_prints_the_one_cpu_floors_and_their_bound():
+    from crop_sim_ros.task.bench import bench_env
+    lines = []
+    results = bench_env(steps=20, num_fields=256, vector_steps=3, repeats=1, echo=lines.append)
+    model, noise = results["model_floor_field_days"], results["noise_floor_field_days"]
+    bound = results["one_cpu_bound_field_days"]
+    assert bound.per_cpu_s == pytest.approx(model.per_cpu_s * noise.per_cpu_s / (model.per_cpu_s + noise.per_cpu_s))
+    assert bound.per_s == pytest.approx(model.per_s * noise.per_s / (model.per_s + noise.per_s))
+    printed = "\n".join(lines)
+    for label in ("CPU", "floor: model step alone", "floor: noise alone (10 normals/field-day)",
+                  "bound 1/(1/model + 1/noise)"):
+        assert label in printed, label
+    assert sum("field-days/s" in line and "per CPU-s" in line for line in lines) == 5  # + the threaded figure

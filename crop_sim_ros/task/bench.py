@@ -9,7 +9,13 @@ during its measurement (:class:`crop_sim_ros.bench.MachineLoad`):
 - ``vector_field_days``: fields x days of ``IrrigationVectorEnv`` with ``num_fields`` fields, as it runs
   by default (the noise drawn on a worker thread when a second CPU is usable);
 - ``vector_one_cpu_field_days``: the same with this thread pinned to one CPU and the noise drawn on it
-  (the single-core figure, as under ``taskset -c 0``).
+  (the single-core figure, as under ``taskset -c 0``);
+- ``model_floor_field_days``, ``noise_floor_field_days``: on that CPU, in turn with the vector figure
+  (so all three see the same load), the two costs no speed work on the environment can remove: the
+  batched SIMPLE step alone, and drawing the observation noise alone (10 float32 normals per field-day
+  from the env's SFC64 stream);
+- ``one_cpu_bound_field_days``: 1 / (1/model + 1/noise), the most the vector env can reach on this CPU
+  with the current noise scheme (any other scheme would change every result computed so far).
 
 Each is a :class:`crop_sim_ros.bench.Rate`: per second of wall time and per second of this process's CPU
 time (on a shared machine the second holds better).
@@ -23,10 +29,11 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from ..bench import MachineLoad, Rate, best_rate, figure_line, measured
-from . import ENV_IDS
+from ..bench import MachineLoad, Rate, best_rate, figure_line, interleaved_best_rates, measured
+from ..model import step
+from . import ENV_IDS, core
 from .env import IrrigationEnv
-from .vector_env import IrrigationVectorEnv
+from .vector_env import IrrigationVectorEnv, PrefetchedNormal
 
 IRRIGATION_MM = 3.0
 
@@ -44,7 +51,8 @@ def _single_env_rate(env, steps: int, repeats: int) -> Rate:
     return best_rate(run_once, steps, repeats)
 
 
-def _vector_rate(env: IrrigationVectorEnv, steps: int, repeats: int) -> Rate:
+def _vector_run(env: IrrigationVectorEnv, steps: int):
+    """(run_once, field-days) of ``steps`` steps of ``env`` (reset, warmed up)."""
     actions = np.full((env.num_envs, 1), IRRIGATION_MM, dtype=np.float32)
     env.reset(seed=0)
     env.step(actions)
@@ -53,7 +61,47 @@ def _vector_rate(env: IrrigationVectorEnv, steps: int, repeats: int) -> Rate:
         for _ in range(steps):
             env.step(actions)
 
-    return best_rate(run_once, steps * env.num_envs, repeats)
+    return run_once, steps * env.num_envs
+
+
+def _model_run(env: IrrigationVectorEnv, steps: int):
+    """(run_once, field-days) of the model step alone on ``env``'s fields: ``steps`` days in random seasons
+    of its table, from sowing (again after the shortest season's days), the weather gathered beforehand."""
+    irrigation_mm = np.full(env.num_envs, IRRIGATION_MM)
+    state = core.initial(env.params, np.random.default_rng(0).integers(len(env.seasons), size=env.num_envs))
+    days = []
+    for _ in range(min(steps, int(env.seasons.n_days.min()))):
+        days.append(core.daily_weather(env.seasons, state))
+        state, _ = core.transition(env.params, env.seasons, state, irrigation_mm, weather=days[-1])
+
+    def run_once():
+        for day in range(steps):
+            if day % len(days) == 0:
+                crop = env.params.sowing_state
+            crop, _ = step(env.params.fields, crop, days[day % len(days)], irrigation_mm)
+
+    return run_once, steps * env.num_envs
+
+
+def _noise_run(env: IrrigationVectorEnv, steps: int):
+    """(run_once, field-days) of drawing the observation noise alone, as the env draws it on one CPU."""
+    noise = PrefetchedNormal(0, env.num_envs, env.params.noise_columns, thread=False)
+    shape = (env.num_envs, env.params.noise_columns)
+
+    def run_once():
+        for _ in range(steps):
+            noise.standard_normal(shape)
+
+    return run_once, steps * env.num_envs
+
+
+def _vector_rate(env: IrrigationVectorEnv, steps: int, repeats: int) -> Rate:
+    return best_rate(*_vector_run(env, steps), repeats)
+
+
+def one_cpu_bound(model: Rate, noise: Rate) -> Rate:
+    """The most a step costing the model's time plus the noise's time can reach (field-days/s)."""
+    return Rate(*(1.0 / (1.0 / m + 1.0 / n) for m, n in zip(model, noise)))
 
 
 def on_one_cpu(measure):
@@ -86,10 +134,20 @@ def bench_env(scenario: str = "benton-generated", steps: int = 20_000, num_field
     results["vector_field_days"] = measured(f"IrrigationVectorEnv, {num_fields} fields ({where})",
                                             lambda: _vector_rate(vector, vector_steps, repeats), echo=echo)
     one_cpu = IrrigationVectorEnv(num_fields, scenario, data_dir, noise_thread=False)
+    runs = {"vector_one_cpu_field_days": _vector_run(one_cpu, vector_steps),
+            "model_floor_field_days": _model_run(one_cpu, vector_steps),
+            "noise_floor_field_days": _noise_run(one_cpu, vector_steps)}
     load = MachineLoad()
-    cpu, results["vector_one_cpu_field_days"] = on_one_cpu(lambda: _vector_rate(one_cpu, vector_steps, repeats))
-    echo(figure_line(f"IrrigationVectorEnv, {num_fields} fields, CPU {cpu} only", results["vector_one_cpu_field_days"],
-                     "field-days", load))
+    cpu, rates = on_one_cpu(lambda: interleaved_best_rates(runs, repeats))
+    results.update(rates)
+    results["one_cpu_bound_field_days"] = one_cpu_bound(rates["model_floor_field_days"],
+                                                        rates["noise_floor_field_days"])
+    labels = {"vector_one_cpu_field_days": f"IrrigationVectorEnv, {num_fields} fields, CPU {cpu} only",
+              "model_floor_field_days": f"  floor: model step alone, CPU {cpu}",
+              "noise_floor_field_days": f"  floor: noise alone ({one_cpu.params.noise_columns} normals/field-day)",
+              "one_cpu_bound_field_days": "  bound 1/(1/model + 1/noise) on this CPU"}
+    for key, label in labels.items():
+        echo(figure_line(label, results[key], "field-days", load))
     return results
 
 

@@ -55,9 +55,6 @@ class PrefetchedNormal:
     on the seed and the sequence of calls, never on the threads' timing. Below ``MIN_ROWS_TO_PREFETCH``
     rows the hand-off costs more than it saves, and blocks are drawn in place (the same values); so they
     are with ``thread=False`` (on one CPU the worker only takes turns with the main thread).
-
-    Blocks are drawn into two preallocated buffers in turn (no fresh pages each step): a returned block
-    stays valid until the call after next, and the caller may scale it in place.
     """
 
     MIN_ROWS_TO_PREFETCH = 2048
@@ -67,8 +64,6 @@ class PrefetchedNormal:
     def __init__(self, seed: int, rows: int, columns: int, thread: bool = True):
         self._stream = np.random.Generator(np.random.SFC64(seed))
         self._shape = (rows, columns)
-        self._buffers = [np.empty(self._shape, np.float32) for _ in range(2)]
-        self._turn = 0  # the buffer the next block goes into
         self._next: Future | None = None
         if thread and rows >= self.MIN_ROWS_TO_PREFETCH:
             if PrefetchedNormal._executor_pid != os.getpid():
@@ -76,19 +71,14 @@ class PrefetchedNormal:
                 PrefetchedNormal._executor_pid = os.getpid()
             self._next = self._submit()
 
-    def _draw(self) -> np.ndarray:
-        block = self._buffers[self._turn]
-        self._turn ^= 1
-        return self._stream.standard_normal(dtype=np.float32, out=block)
-
     def _submit(self) -> Future:
-        return PrefetchedNormal._executor.submit(self._draw)
+        return PrefetchedNormal._executor.submit(self._stream.standard_normal, self._shape, np.float32)
 
     def standard_normal(self, shape: tuple[int, ...], dtype=np.float32) -> np.ndarray:
         if dtype != np.float32 or len(shape) != 2 or shape[1] != self._shape[1] or shape[0] > self._shape[0]:
             raise ValueError(f"noise of shape {shape} ({np.dtype(dtype)}) from blocks of {self._shape} float32")
         if self._next is None:
-            block = self._draw()
+            block = self._stream.standard_normal(self._shape, np.float32)
         else:
             block = self._next.result()
             self._next = self._submit()
