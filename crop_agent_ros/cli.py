@@ -27,6 +27,7 @@ COMMANDS = {
     "evaluate": ("crop_agent_ros.evaluate", "evaluate policies on held-out seasons"),
     "tune-rule": ("crop_agent_ros.policies.family_tuning",
                   "tune a family task's water-budget rule on generated training seasons"),
+    "sweep": ("crop_agent_ros.scale.sweep", "training and evaluation sweeps on Ray Tune (local or a cluster)"),
     "ros-bench": ("crop_agent_ros.ros_bench", "benchmark days per second through ROS 2 against bare rclpy"),
 }
 

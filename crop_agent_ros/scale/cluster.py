@@ -1,0 +1,105 @@
+"""One way to reach Ray: a local instance on loopback, or an existing cluster (``--address``).
+
+- ``address=None``: start a private local instance with ``cpus`` CPUs (default: the CPUs this process may
+  use), bound to 127.0.0.1 (Ray would otherwise pick the address of the machine's outside interface), no
+  dashboard, no usage statistics; it ends with the command.
+- ``address="auto"`` or ``"HOST:PORT"``: join a running cluster (``ray start --head`` on one machine,
+  ``ray start --address=HOST:PORT`` on the others); its CPUs are the cluster's.
+
+Every worker of the job gets ``CROP_SIM_DATA_DIR`` (the reference data directory as the driver resolved it:
+on a real cluster it must exist at that path on every node, e.g. a shared file system) and one thread per
+numerical library (one CPU per trial or task).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+
+from crop_sim_ros.usage import UsageError
+
+LOOPBACK = "127.0.0.1"
+ONE_THREAD = {name: "1" for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
+_ADDRESS = re.compile(r"^(auto|(\[[0-9a-fA-F:]+\]|[A-Za-z0-9_.-]+):\d{1,5})$")
+
+
+@dataclass(frozen=True)
+class Cluster:
+    """What the command is connected to: ``local`` (its own instance) or the address it joined, and the
+    cluster's nodes (id, address, CPUs) when it connected."""
+
+    address: str
+    nodes: tuple[dict, ...]
+
+    @property
+    def cpus(self) -> int:
+        return int(sum(node["cpus"] for node in self.nodes))
+
+    def describe(self) -> str:
+        nodes = ", ".join(f"{node['node']} ({node['address']}, {node['cpus']:g} CPU)" for node in self.nodes)
+        return f"Ray {self.address}: {len(self.nodes)} node(s): {nodes}"
+
+
+def check_address(address: str | None) -> str | None:
+    """``address`` if it is None, ``auto`` or HOST:PORT, else UsageError."""
+    if address is None or _ADDRESS.match(address):
+        return address
+    raise UsageError(f"--address: {address!r} is neither 'auto' nor HOST:PORT (e.g. 127.0.0.1:6379)")
+
+
+def connect(address: str | None, cpus: int | None = None, env_vars: dict | None = None) -> Cluster:
+    """Connect this process to Ray (see the module docstring); UsageError if no cluster answers at
+    ``address`` or ``cpus`` is not positive."""
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")   # no usage report to an outside server
+    import logging
+
+    import ray
+    from crop_sim_ros.task.scenario import DATA_DIR_ENV, default_data_dir
+
+    address = check_address(address)
+    worker_env = {**ONE_THREAD, **(env_vars or {})}
+    worker_env.setdefault(DATA_DIR_ENV, str(default_data_dir().resolve()))
+    common = dict(include_dashboard=False, log_to_driver=False, logging_level=logging.WARNING,
+                  runtime_env={"env_vars": worker_env}, configure_logging=True)
+    if address is None:
+        if cpus is not None and cpus < 1:
+            raise UsageError(f"--cpus: {cpus} is not a positive number of CPUs")
+        ray.init(num_cpus=cpus or len(os.sched_getaffinity(0)), _node_ip_address=LOOPBACK, **common)
+        where = "local"
+    else:
+        try:
+            ray.init(address=address, **common)
+        except ConnectionError as error:
+            raise UsageError(f"--address {address}: no Ray cluster answers there ({_first_line(error)}); start one "
+                             "with `ray start --head` or leave --address out for a local instance") from None
+        where = address
+    return Cluster(where, tuple(nodes()))
+
+
+def nodes() -> list[dict]:
+    """The cluster's live nodes: short id (first 8 hex digits), address and CPUs, in a stable order."""
+    import ray
+    alive = [n for n in ray.nodes() if n.get("Alive")]
+    return sorted(({"node": n["NodeID"][:8], "node_id": n["NodeID"], "address": n.get("NodeManagerAddress", "?"),
+                    "cpus": float(n.get("Resources", {}).get("CPU", 0.0))} for n in alive),
+                  key=lambda n: n["node_id"])
+
+
+def this_node() -> dict:
+    """Inside a Ray task or actor: the node it runs on (short id, full id, address) and its process id."""
+    import ray
+    context = ray.get_runtime_context()
+    return {"node": context.get_node_id()[:8], "node_id": context.get_node_id(),
+            "address": ray.util.get_node_ip_address(), "pid": os.getpid()}
+
+
+def disconnect() -> None:
+    import ray
+    if ray.is_initialized():
+        ray.shutdown()
+
+
+def _first_line(error: BaseException) -> str:
+    text = str(error).strip().splitlines()
+    return text[0] if text else type(error).__name__
