@@ -549,7 +549,8 @@ def table_rows(trials: list[Trial], results: dict, out: Path) -> list[dict]:
         if result is not None and result.error is not None:
             status, error = "failed", _error_line(result.error)
         elif metrics.get("stage") != "evaluated":   # the sweep was interrupted before the trial ended
-            status, error = "unfinished", "" if not metrics else f"interrupted after stage {metrics['stage']!r}"
+            stage = metrics.get("stage")
+            status, error = "unfinished", f"interrupted after stage {stage!r}" if stage else ""
         else:
             status, error = "finished", ""
         row = {"trial": trial.key, "task": trial.task, "config": trial.config, "seed": trial.seed,
