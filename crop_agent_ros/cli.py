@@ -28,6 +28,7 @@ COMMANDS = {
     "tune-rule": ("crop_agent_ros.policies.family_tuning",
                   "tune a family task's water-budget rule on generated training seasons"),
     "sweep": ("crop_agent_ros.scale.sweep", "training and evaluation sweeps on Ray Tune (local or a cluster)"),
+    "sweep-bench": ("crop_agent_ros.scale.bench", "benchmark sweep trials per hour with 1 and with 2 CPUs"),
     "ros-bench": ("crop_agent_ros.ros_bench", "benchmark days per second through ROS 2 against bare rclpy"),
 }
 

@@ -241,3 +241,13 @@ def _text(path: Path) -> str:
         return path.read_text()
     except FileNotFoundError:
         return ""
+
+
+def test_the_scaling_benchmark_runs_a_valid_sweep_in_a_loopback_only_namespace():
+    from crop_agent_ros.scale import bench
+    planned = SweepSpec.from_dict(bench.sweep_config(4, 20000), "bench").trials()
+    assert [t.seed for t in planned] == [0, 1, 2, 3]
+    assert "--no-oracle" in planned[0].evaluate_argv and "20000" in planned[0].train_argv
+    seen = subprocess.run([*bench.loopback_prefix(), "ip", "-o", "link", "show", "up"], capture_output=True,
+                          text=True, timeout=30)
+    assert seen.returncode == 0 and [line.split(":")[1].strip() for line in seen.stdout.splitlines()] == ["lo"]
