@@ -13,7 +13,7 @@ The configuration (YAML; every key but ``tasks`` optional)::
     train:                           # fixed `crop-sim train` options, by long name without dashes
       timesteps: 2000000
       eval-freq: 400000
-      no-progress: true              # a flag: true adds it, false leaves it out
+      no-progress: true              # a flag: true adds it; false adds its --no- form if it has one
     grid:                            # searched options: every combination of the listed values
       learning-rate: [3.0e-4, 1.0e-4]
     random:                          # searched options: drawn `samples` times per grid point
@@ -83,7 +83,9 @@ STATUSES = ("finished", "failed", "unfinished")
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("config", type=Path, help="the sweep's YAML file (see `crop-sim sweep --help` / the README)")
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = "the configuration (YAML):\n" + __doc__.split("::\n\n", 1)[1].split("\n\n", 1)[0]
+    parser.add_argument("config", type=Path, help="the sweep's YAML file (its keys below)")
     parser.add_argument("--address", default=None,
                         help="join a running Ray cluster (auto or HOST:PORT); default: a local instance")
     parser.add_argument("--cpus", type=int, default=None,
