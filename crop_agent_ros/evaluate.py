@@ -203,6 +203,9 @@ def run(args) -> int:
         from .learning.evaluate_task import run_task
         run_task(args)
         return 0
+    if args.address is not None or args.cpus is not None:
+        raise UsageError(f"{'--address' if args.address is not None else '--cpus'}: Ray runs the family protocol "
+                         "(--task TASK); this evaluation (--policies) runs in this process")
     if args.out is None:
         args.out = Path("runs/evaluate")
     from crop_sim_ros.simulate import find_scenario, output_directory

@@ -43,6 +43,13 @@ Outputs in ``--out`` (default ``runs/eval-<task>``): ``table.csv`` (one row per 
 (one table per set), ``regret.png`` (regret with 95 % intervals per set), ``learning_curves.csv`` and
 ``learning_curves.png`` (each run's held-out real regret against environment steps, from every checkpoint in
 its directory: ``*.zip`` with a ``.json`` giving ``timesteps_at_save``).
+
+Units of work: one policy on one set with one noise seed (all the set's seasons: the vector env draws one
+noise stream for the whole batch, so splitting a set's seasons would change the noise), and the oracle on up to
+``ORACLE_SEASONS_PER_UNIT`` seasons of a set. Without ``--address`` they run one after the other in this
+process; with ``--address`` as Ray tasks (:mod:`crop_agent_ros.scale.evaluate_units`), each computed by the
+same :func:`run_unit` on the same inputs, so the tables are the same bit for bit; ``table.json``'s
+``execution`` says where each unit ran.
 """
 
 from __future__ import annotations
@@ -50,10 +57,13 @@ from __future__ import annotations
 import argparse
 import csv
 import glob
+import hashlib
 import json
+import os
 import platform
 import subprocess
 import sys
+import tempfile
 import time
 import zipfile
 from dataclasses import dataclass, replace
@@ -73,6 +83,10 @@ RULE = "budget-rule"
 ORACLE = "oracle"
 KINDS = ("oracle", "rule", "agent", "early")
 MAX_NOISE_SEEDS = 1_000
+# The oracle plans a unit's seasons side by side (12 seasons at once: 1.2 s a season; one at a time: 3.3 s);
+# its plans and returns are the same however the seasons are chunked (test_distributed_evaluate checks it).
+ORACLE_SEASONS_PER_UNIT = 10
+LOCAL_RAY = "local"         # --address local: a private Ray instance on this machine
 MAX_RESAMPLES = 100_000
 CSV_COLUMNS = (
     "set", "role", "policy", "kind", "group", "runs", "training_seeds", "seasons", "noise_seeds", "timesteps",
@@ -108,6 +122,12 @@ def add_task_arguments(parser) -> None:
                              "seasons 0..N-1 (of each part of a mixture)")
     parser.add_argument("--tune-candidates", type=int, default=128)
     parser.add_argument("--tune-rounds", type=int, default=4)
+    parser.add_argument("--address", default=None,
+                        help="run the units (policy x set x noise seed, oracle season chunks) as Ray tasks: 'auto' "
+                             "or HOST:PORT joins a running cluster, 'local' starts a private instance on this "
+                             "machine; same results as without it (default: in this process, no Ray)")
+    parser.add_argument("--cpus", type=int, default=None,
+                        help="CPUs of the private Ray instance of --address local (default: this process's CPUs)")
 
 
 def add_arguments(parser) -> None:
@@ -283,11 +303,97 @@ def the_rule(task, args, log):
                                                  "tuned_on_seasons": seasons.tolist()}
 
 
-def policy_returns(policy, evaluation_set: EvaluationSet, terms: dict, noise_seeds: int) -> np.ndarray:
-    """(M, K) returns (USD/ha) of ``policy`` on the set's M seasons with noise seeds 0..K-1, same terms."""
+@dataclass(frozen=True)
+class AgentFile:
+    """A saved agent as data, as it goes to a Ray worker (a cluster's machines need not share a disk): the
+    bytes of its ``.zip`` and of the ``.json`` beside it; ``path``: where this process read them."""
+
+    path: str
+    name: str
+    model_zip: bytes
+    model_json: bytes
+
+    @classmethod
+    def read(cls, path: Path, name: str) -> "AgentFile":
+        with user_input(f"--agents {name}", (OSError,)):
+            return cls(str(path), name, path.read_bytes(), path.with_suffix(".json").read_bytes())
+
+    def policy(self, loaded: dict):
+        """The policy, loaded once per content into ``loaded`` (a worker keeps its agents for its next units)."""
+        digest = hashlib.sha256(self.model_json + b"\0" + self.model_zip).hexdigest()
+        if digest not in loaded:
+            with tempfile.TemporaryDirectory(prefix="crop-sim-agent-") as directory:
+                path = Path(directory) / "model.zip"
+                path.write_bytes(self.model_zip)
+                path.with_suffix(".json").write_bytes(self.model_json)
+                loaded[digest] = load_agent(path, self.name)
+        return loaded[digest]
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One piece of the evaluation: policy ``policy`` (RULE, ORACLE or an agent file's path) on the seasons at
+    positions ``start:stop`` of set ``set_index`` with noise seed ``noise_seed`` (the oracle: 0). A policy's
+    unit is its whole set (one noise stream per batch); the oracle's, a chunk of it."""
+
+    set_index: int
+    policy: str
+    noise_seed: int
+    start: int
+    stop: int
+
+
+@dataclass(frozen=True)
+class UnitResult:
+    """A unit's returns ((stop - start,) USD/ha), the oracle's plan summaries (else None), its compute time
+    (s) and where it ran (None: this process; on Ray, :func:`crop_agent_ros.scale.cluster.this_node`)."""
+
+    returns: np.ndarray
+    plans: list | None
+    seconds: float
+    node: dict | None = None
+
+
+def plan_units(sets: list[EvaluationSet], agent_keys: list[str], curve_keys: list[str], noise_seeds: int,
+               with_oracle: bool, oracle_seasons_per_unit: int = ORACLE_SEASONS_PER_UNIT) -> list[Unit]:
+    """Every unit of the run, set by set: the oracle's chunks (the longest units first), then the rule and each
+    agent file with noise seeds 0..K-1; on heldout-real also the learning curves' other checkpoints."""
+    units = []
+    for index, evaluation_set in enumerate(sets):
+        m = len(evaluation_set.seasons)
+        if with_oracle:
+            units += [Unit(index, ORACLE, 0, start, min(start + oracle_seasons_per_unit, m))
+                      for start in range(0, m, oracle_seasons_per_unit)]
+        keys = [RULE, *agent_keys, *(curve_keys if evaluation_set.name == HELD_OUT_REAL else [])]
+        units += [Unit(index, key, seed, 0, m) for key in keys for seed in range(noise_seeds)]
+    return units
+
+
+def run_unit(unit: Unit, evaluation_set: EvaluationSet, terms: dict, policy) -> UnitResult:
+    """The unit's returns: ``policy`` (None for the oracle) on its seasons and noise seed under the set's terms
+    (one draw per season, for the whole set). The one function of a unit, in this process or on a worker."""
     from ..policies.rollout import run_episodes
-    return np.stack([run_episodes(policy, evaluation_set.scenario, evaluation_set.seasons, seed=seed,
-                                  terms=terms).episode_return for seed in range(noise_seeds)], axis=1)
+    started = time.perf_counter()
+    if unit.policy == ORACLE:
+        part = replace(evaluation_set, seasons=evaluation_set.seasons[unit.start:unit.stop])
+        returns, plans = oracle_returns(part, {name: values[unit.start:unit.stop] for name, values in terms.items()})
+    else:
+        returns, plans = run_episodes(policy, evaluation_set.scenario, evaluation_set.seasons, seed=unit.noise_seed,
+                                      terms=terms).episode_return, None
+    return UnitResult(returns, plans, time.perf_counter() - started)
+
+
+def run_units_here(units: list[Unit], sets: list[EvaluationSet], terms: list[dict], policies: dict,
+                   log) -> list[UnitResult]:
+    """Every unit, one after the other, in this process (no Ray)."""
+    results = []
+    for position, unit in enumerate(units):
+        if position == 0 or units[position - 1].set_index != unit.set_index:
+            mine = [u for u in units if u.set_index == unit.set_index]
+            log(f"{sets[unit.set_index].name}: {len(mine)} units ({len(sets[unit.set_index].seasons)} seasons; "
+                f"{sum(u.policy == ORACLE for u in mine)} of the oracle)")
+        results.append(run_unit(unit, sets[unit.set_index], terms[unit.set_index], policies.get(unit.policy)))
+    return results
 
 
 def oracle_returns(evaluation_set: EvaluationSet, terms: dict) -> tuple[np.ndarray, list[dict]]:
@@ -469,6 +575,14 @@ def _check_arguments(args) -> None:
     for name, value, low, high in checks:
         if not low <= value <= high:
             raise UsageError(f"{name}: {value} is not in {low}..{high}")
+    if args.address != LOCAL_RAY:
+        from ..scale.cluster import check_address
+        check_address(args.address)
+        if args.cpus is not None:
+            raise UsageError("--cpus: sets the CPUs of the private Ray instance of --address local; a cluster's "
+                             "CPUs are its own")
+    elif args.cpus is not None and args.cpus < 1:
+        raise UsageError(f"--cpus: {args.cpus} is not a positive number of CPUs")
 
 
 def _task(name: str | None):
@@ -531,75 +645,85 @@ def run_task(args) -> dict:
             raise UsageError("--oracle: the family oracle (crop_agent_ros/policies/family_oracle.py) is not "
                              "available; --no-oracle reports gaps to the best evaluated policy instead") from None
     rule, rule_info = the_rule(task, args, log)
-    agents = {group: [(run, load_agent(run.final, group),
-                       None if run.early is None else load_agent(run.early, f"{group}-1%")) for run in runs]
-              for group, runs in groups.items()}
+    agent_files = {str(path): name for runs in groups.values() for run in runs
+                   for path, name in ((run.final, run.group), (run.early, f"{run.group}-1%")) if path is not None}
+    with_curves = bool(args.curves and groups and any(s.name == HELD_OUT_REAL for s in sets))
+    if args.curves and groups and not with_curves:
+        log(f"no learning curves: --sets leaves out {HELD_OUT_REAL}")
+    curve_files = {str(path): run.group for runs in groups.values() for run in runs for _, path in run.checkpoints
+                   if with_curves and str(path) not in agent_files}
+    # every policy is loaded here first: a broken file is the user's, before any unit runs
+    policies = {RULE: rule, **{key: load_agent(Path(key), name) for key, name in {**agent_files, **curve_files}.items()}}
+    terms = [set_terms(evaluation_set, args.terms_seed + index) for index, evaluation_set in enumerate(sets)]
+    units = plan_units(sets, list(agent_files), list(curve_files), args.noise_seeds, args.oracle)
     wall = {"setup_s": time.perf_counter() - started}
     out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    if args.address is None:
+        results = run_units_here(units, sets, terms, policies, log)
+        where, cluster_nodes = None, []
+    else:
+        from ..scale.evaluate_units import run_on_ray
+        sources = {RULE: rule, **{key: AgentFile.read(Path(key), name)
+                                  for key, name in {**agent_files, **curve_files}.items()}}
+        results, cluster = run_on_ray(units, sets, terms, sources, args.address, args.cpus, log)
+        where, cluster_nodes = cluster.address, list(cluster.nodes)
+    wall["units_s"] = round(time.perf_counter() - t0, 1)
+    done = dict(zip(units, results))
+    k = args.noise_seeds
+
+    def returns_of(index: int, key: str) -> np.ndarray:
+        """(M, K) returns of policy ``key`` on set ``index``, noise seeds 0..K-1."""
+        m = len(sets[index].seasons)
+        return np.stack([done[Unit(index, key, seed, 0, m)].returns for seed in range(k)], axis=1)
+
     report_sets, rows, curve_inputs = [], [], None
-    cache: dict[tuple[str, str], np.ndarray] = {}
     for index, evaluation_set in enumerate(sets):
-        t0 = time.perf_counter()
-        terms_seed = args.terms_seed + index
-        terms = set_terms(evaluation_set, terms_seed)
-        m, k = len(evaluation_set.seasons), args.noise_seeds
+        m = len(evaluation_set.seasons)
         evaluated: list[Evaluated] = []
-        oracle, plans, oracle_s = None, None, 0.0
+        oracle, plans = None, None
         if args.oracle:
-            log(f"{evaluation_set.name}: planning the oracle on {m} seasons")
-            planned = time.perf_counter()
-            oracle, plans = oracle_returns(evaluation_set, terms)
-            oracle_s = round(time.perf_counter() - planned, 1)
+            chunks = [done[u] for u in units if u.set_index == index and u.policy == ORACLE]
+            oracle = np.concatenate([chunk.returns for chunk in chunks])
+            plans = [plan for chunk in chunks for plan in chunk.plans]
             evaluated.append(Evaluated(ORACLE, "oracle", np.broadcast_to(oracle[None, :, None], (1, m, k)).copy()))
-        log(f"{evaluation_set.name}: {RULE} and {sum(len(r) for r in agents.values())} agent runs, {m} seasons x "
-            f"{k} noise seeds")
-        evaluated.append(Evaluated(RULE, "rule", policy_returns(rule, evaluation_set, terms, k)[None]))
-        for group, runs in agents.items():
-            finals, earlies = [], []
-            for run, final, early in runs:
-                finals.append(policy_returns(final, evaluation_set, terms, k))
-                cache[(evaluation_set.name, str(run.final))] = finals[-1]
-                if early is not None:
-                    earlies.append(policy_returns(early, evaluation_set, terms, k))
-                    cache[(evaluation_set.name, str(run.early))] = earlies[-1]
-            seeds = tuple(run.seed for run, _, _ in runs)
-            has_early = len(earlies) == len(runs)
-            evaluated.append(Evaluated(group, "agent", np.stack(finals), group,
-                                       tuple(run.timesteps_of(run.final) for run, _, _ in runs), seeds,
+        evaluated.append(Evaluated(RULE, "rule", returns_of(index, RULE)[None]))
+        for group, runs in groups.items():
+            seeds = tuple(run.seed for run in runs)
+            has_early = all(run.early is not None for run in runs)
+            evaluated.append(Evaluated(group, "agent", np.stack([returns_of(index, str(run.final)) for run in runs]),
+                                       group, tuple(run.timesteps_of(run.final) for run in runs), seeds,
                                        partner=f"{group}, 1 % checkpoint" if has_early else None))
             if has_early:
-                evaluated.append(Evaluated(f"{group}, 1 % checkpoint", "early", np.stack(earlies), group,
-                                           tuple(run.timesteps_of(run.early) for run, _, _ in runs), seeds))
+                evaluated.append(Evaluated(f"{group}, 1 % checkpoint", "early",
+                                           np.stack([returns_of(index, str(run.early)) for run in runs]), group,
+                                           tuple(run.timesteps_of(run.early) for run in runs), seeds))
         reference = (np.broadcast_to(oracle[:, None], (m, k)) if oracle is not None
                      else np.max([e.returns.max(axis=0) for e in evaluated], axis=0))
-        resamples = Resamples.draw(args.bootstrap_seed, index, m, k, {g: len(r) for g, r in agents.items()},
+        resamples = Resamples.draw(args.bootstrap_seed, index, m, k, {g: len(r) for g, r in groups.items()},
                                    args.bootstrap)
         set_rows = [{"set": evaluation_set.name, "role": evaluation_set.role, **row}
                     for row in compare(evaluated, reference, resamples, oracle is not None)]
         rows.extend(set_rows)
         if evaluation_set.name == HELD_OUT_REAL:
-            curve_inputs = (evaluation_set, terms, reference)
+            curve_inputs = (index, reference)
         table = core.scenario_table(evaluation_set.scenario)
+        mine = [(u, done[u]) for u in units if u.set_index == index]
         report_sets.append({
             "name": evaluation_set.name, "role": evaluation_set.role, "scenario": evaluation_set.scenario.name,
             "seasons": evaluation_set.seasons.tolist(),
             "season_sources": [f"{table.sources[s]} sown {table.sowing_dates[s]}" for s in evaluation_set.seasons],
-            "terms_seed": terms_seed, "terms": {name: values.tolist() for name, values in terms.items()},
+            "terms_seed": args.terms_seed + index,
+            "terms": {name: values.tolist() for name, values in terms[index].items()},
             "oracle_returns_usd_ha": None if oracle is None else oracle.tolist(),
             "oracle_plans": plans,
             "reference": "oracle" if oracle is not None else "best evaluated policy per (season, noise seed)",
             "returns_usd_ha": {e.name: e.returns.tolist() for e in evaluated},
             "returns_shape": "training runs x seasons x noise seeds", "rows": set_rows,
-            "wall_s": round(time.perf_counter() - t0, 1), "oracle_wall_s": oracle_s})
-        log(f"{evaluation_set.name}: done in {time.perf_counter() - t0:.0f} s")
-    curves: list[dict] = []
-    if args.curves and groups:
-        if curve_inputs is None:
-            log(f"no learning curves: --sets leaves out {HELD_OUT_REAL}")
-        else:
-            t0 = time.perf_counter()
-            curves = learning_curve_rows(groups, *curve_inputs, args.noise_seeds, cache)
-            wall["learning_curves_s"] = round(time.perf_counter() - t0, 1)
+            "units_s": round(sum(r.seconds for _, r in mine), 1),
+            "oracle_units_s": round(sum(r.seconds for u, r in mine if u.policy == ORACLE), 1)})
+    curves = (learning_curve_rows(groups, curve_inputs[1], lambda key: returns_of(curve_inputs[0], key))
+              if with_curves else [])
     wall["total_s"] = round(time.perf_counter() - started, 1)
     result = {
         "task": task.name, "command": "crop-sim " + " ".join(sys.argv[1:]),
@@ -614,23 +738,37 @@ def run_task(args) -> dict:
         "agents": {group: [{"directory": str(run.directory), "training_seed": run.seed,
                             "checkpoints": [[steps, str(path)] for steps, path in run.checkpoints]} for run in runs]
                    for group, runs in groups.items()},
-        "sets": report_sets, "learning_curves": curves, "versions": _versions(), "wall_s": wall}
+        "sets": report_sets, "learning_curves": curves, "versions": _versions(), "wall_s": wall,
+        "execution": execution_record(where, cluster_nodes, units, results, sets)}
     write_outputs(out, result, rows, curves)
     log(f"wrote {out}/table.md, table.csv, table.json, regret.png"
         + (", learning_curves.csv, learning_curves.png" if curves else "") + f" in {wall['total_s']:.0f} s")
     return result
 
 
-def learning_curve_rows(groups: dict, evaluation_set: EvaluationSet, terms: dict, reference: np.ndarray,
-                        noise_seeds: int, cache: dict) -> list[dict]:
-    """Each run's mean regret (or gap) on ``evaluation_set`` at every saved checkpoint, by environment steps."""
+def execution_record(address: str | None, cluster_nodes: list[dict], units: list[Unit], results: list[UnitResult],
+                     sets: list[EvaluationSet]) -> dict:
+    """Where the units ran (for ``table.json`` only: the tables are the same wherever they ran)."""
+    here = {"node": "this process", "pid": os.getpid()}
+    unit_log = [{"set": sets[u.set_index].name, "policy": u.policy, "noise_seed": u.noise_seed, "seasons": [u.start, u.stop],
+            "node": (r.node or here)["node"], "pid": (r.node or here)["pid"], "seconds": round(r.seconds, 2)}
+           for u, r in zip(units, results)]
+    per_node: dict[str, int] = {}
+    for entry in unit_log:
+        per_node[entry["node"]] = per_node.get(entry["node"], 0) + 1
+    return {"address": address or "none: every unit in this process, no Ray", "ray_nodes": cluster_nodes,
+            "units": len(units), "units_per_node": per_node,
+            "oracle_seasons_per_unit": ORACLE_SEASONS_PER_UNIT, "unit_log": unit_log}
+
+
+def learning_curve_rows(groups: dict, reference: np.ndarray, returns_of) -> list[dict]:
+    """Each run's mean regret (or gap) on heldout-real at every saved checkpoint, by environment steps
+    (``returns_of(path)``: the checkpoint's (M, K) returns there)."""
     rows = []
     for group, runs in groups.items():
         for run in runs:
             for steps, path in run.checkpoints:
-                returns = cache.get((evaluation_set.name, str(path)))
-                if returns is None:
-                    returns = policy_returns(load_agent(path, group), evaluation_set, terms, noise_seeds)
+                returns = returns_of(str(path))
                 rows.append({"group": group, "run": str(run.directory), "training_seed": run.seed,
                              "checkpoint": path.name, "timesteps": steps,
                              "return_usd_ha": float(returns.mean()),
