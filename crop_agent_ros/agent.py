@@ -87,11 +87,7 @@ class AgentNode(Node):
 
     def __init__(self, node_name: str = NODE_NAME, **kwargs):
         super().__init__(node_name, **kwargs)
-        try:
-            self._setup()
-        except BaseException:
-            self.destroy_node()  # a half-built node must not outlive the context (a hang at exit)
-            raise
+        ri.set_up_or_destroy(self, self._setup)
 
     def _setup(self) -> None:
         for name, (default, descriptor) in PARAMETERS.items():

@@ -283,3 +283,13 @@ def node_status_values(message: DiagnosticStatus) -> dict:
         out[key] = int(values.get(key, "-1"))
     out["season_ended"] = values.get("season_ended") == "true"
     return out
+
+
+def set_up_or_destroy(node, set_up) -> None:
+    """Run ``set_up()`` for a node under construction; if it fails, destroy the node before the error goes on
+    (a half-built node must not outlive its context: the process would hang at exit)."""
+    try:
+        set_up()
+    except BaseException:
+        node.destroy_node()
+        raise

@@ -188,11 +188,7 @@ class SimNode(Node):
         super().__init__(node_name, parameter_overrides=overrides, **kwargs)
         self._log: SeasonLog | None = None
         self._deferred: deque = deque()
-        try:
-            self._setup()
-        except BaseException:
-            self.destroy_node()  # a half-built node must not outlive the context (a hang at exit)
-            raise
+        ri.set_up_or_destroy(self, self._setup)
 
     def _setup(self) -> None:
         self._lock = threading.RLock()

@@ -18,7 +18,6 @@ from datetime import date
 import numpy as np
 import pytest
 
-pytest.importorskip("rclpy")
 
 import ros_support  # noqa: E402  (sets ROS_DOMAIN_ID / discovery range before any context exists)
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402

@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("rclpy")
 
 import ros_support  # noqa: E402  (sets ROS_DOMAIN_ID / discovery range before any context exists)
 import rclpy.parameter  # noqa: E402
@@ -210,31 +209,28 @@ def test_a_log_write_failure_is_reported_to_the_caller_and_the_node_goes_on(tmp_
     assert "was not written" in output
 
 
-def test_a_restart_removes_a_torn_last_line_before_appending(tmp_path):
+def _run_days(tmp_path, days: int, mm: float) -> tuple[Path, str]:
+    """Start a sim node on ``tmp_path``'s log, reset (seed 1), step ``days`` days at ``mm``, stop it (exit 0);
+    returns the log's path and the node's output."""
     sim, name, log = ros_support.start_sim(tmp_path)
     try:
-        with PrivateRos(f"torn_{uuid.uuid4().hex[:6]}") as ros:
+        with PrivateRos(f"days_{uuid.uuid4().hex[:6]}") as ros:
             client = connect(ros, name)
             client.reset(seed=1)
-            for _ in range(3):
-                client.step(1.0)
+            for _ in range(days):
+                client.step(mm)
             client.close()
     finally:
         assert sim.stop() == 0, sim.output()
+    return log, sim.output()
+
+
+def test_a_restart_removes_a_torn_last_line_before_appending(tmp_path):
+    log, _ = _run_days(tmp_path, 3, 1.0)
     whole = log.read_bytes()
     torn = b"2030-01-01T00:00:00.000+00:00,crashed-run,1,benton-generated,1,7,2000-04-08,0.4"  # cut short
     log.write_bytes(whole + torn)
-
-    sim2, name2, _ = ros_support.start_sim(tmp_path)  # same log file
-    try:
-        with PrivateRos(f"torn2_{uuid.uuid4().hex[:6]}") as ros:
-            client = connect(ros, name2)
-            client.reset(seed=1)
-            for _ in range(2):
-                client.step(2.0)
-            client.close()
-    finally:
-        assert sim2.stop() == 0, sim2.output()
+    _, output = _run_days(tmp_path, 2, 2.0)  # same log file
     text = log.read_bytes()
     assert text.startswith(whole) and torn not in text
     rows = whole_rows(log)
@@ -242,7 +238,7 @@ def test_a_restart_removes_a_torn_last_line_before_appending(tmp_path):
     assert len(set(runs)) == 2 and len(rows) == 5
     assert [(int(r[LOG_COLUMNS.index("day")]), float(r[LOG_COLUMNS.index("irrigation_mm")])) for r in rows[3:]] == \
         [(0, 2.0), (1, 2.0)]
-    assert f"removed a torn last line ({len(torn)} bytes" in sim2.output()
+    assert f"removed a torn last line ({len(torn)} bytes" in output
 
 
 # --- parameters -----------------------------------------------------------------------------------------------
