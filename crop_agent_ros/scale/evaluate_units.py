@@ -30,7 +30,7 @@ def run_on_ray(units: list, sets: list, terms: list[dict], sources: dict, addres
     private instance with ``cpus`` CPUs), ``auto`` or HOST:PORT (UsageError if no cluster answers)."""
     import ray
 
-    from ..learning.evaluate_task import LOCAL_RAY
+    from ..learning.evaluate_task import LOCAL_RAY, ORACLE
     from . import cluster as ray_cluster
     connected = ray_cluster.connect(None if address == LOCAL_RAY else address, cpus)
     try:
@@ -39,8 +39,11 @@ def run_on_ray(units: list, sets: list, terms: list[dict], sources: dict, addres
         set_refs = [ray.put(s) for s in sets]
         terms_refs = [ray.put(t) for t in terms]
         source_refs = {key: ray.put(source) for key, source in sources.items()}
-        refs = [task.remote(u, set_refs[u.set_index], terms_refs[u.set_index], source_refs.get(u.policy))
-                for u in units]
+        # the oracle's units first: they are the longest, and a long unit started last would end the run alone
+        first = sorted(range(len(units)), key=lambda i: units[i].policy != ORACLE)
+        submitted = {i: task.remote(units[i], set_refs[units[i].set_index], terms_refs[units[i].set_index],
+                                    source_refs.get(units[i].policy)) for i in first}
+        refs = [submitted[i] for i in range(len(units))]
         pending, reported = list(refs), 0
         while pending:
             _, pending = ray.wait(pending, num_returns=1)
