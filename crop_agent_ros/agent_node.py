@@ -62,13 +62,19 @@ def _stop_on_signal(signum, frame) -> None:
     for kind in (signal.SIGINT, signal.SIGTERM):
         signal.signal(kind, signal.SIG_IGN)
     _stopped_by = signal.Signals(signum).name
-    # Raised where the signal lands, the exception can be swallowed there (inside rclpy's wait machinery), or
-    # the clean-up can block: the executor checks the flag on every spin (:func:`_stoppable_executor`) and this
-    # timer ends the process with status 0 if it is still there (1 of 40 trials hung past 60 s before).
+    # Only a flag: an exception raised where the signal lands can be swallowed there (inside rclpy's wait
+    # machinery: the node then drove on, 1 of 40 trials) or, inside Python called from C++, abort the process
+    # (pybind11 error_already_set -> std::terminate, 1 of 20). The executor raises StopSignal at its next spin
+    # (every wait is a bounded spin_once, :func:`_stoppable_executor`); the start-up checks between its steps;
+    # and this timer ends the process with status 0 if it is somehow still there.
     watchdog = threading.Timer(EXIT_WITHIN_S, os._exit, args=(0,))
     watchdog.daemon = True
     watchdog.start()
-    raise StopSignal(_stopped_by)
+
+
+def _stop_if_signalled() -> None:
+    if _stopped_by is not None:
+        raise StopSignal(_stopped_by)
 
 
 def _stoppable_executor():
@@ -78,11 +84,9 @@ def _stoppable_executor():
 
     class StoppableExecutor(SingleThreadedExecutor):
         def spin_once(self, timeout_sec=None):
-            if _stopped_by is not None:
-                raise StopSignal(_stopped_by)
+            _stop_if_signalled()
             super().spin_once(timeout_sec=timeout_sec)
-            if _stopped_by is not None:
-                raise StopSignal(_stopped_by)
+            _stop_if_signalled()
 
     return StoppableExecutor()
 
@@ -115,7 +119,7 @@ def main(args: list[str] | None = None) -> int:
         return 0
     except Exception:
         if _stopped_by is not None:
-            return 0  # the signal landed inside an rclpy (C++) call, which reported it as another error
+            return 0  # stopping anyway: an error on the way out is not the node's failure
         raise
     finally:
         for kind in (signal.SIGINT, signal.SIGTERM):  # from here on the process only exits
@@ -123,9 +127,7 @@ def main(args: list[str] | None = None) -> int:
 
 
 def _unless_stopped(status: int) -> int:
-    """``status``, or 0 when a signal arrived: raised inside an rclpy (C++) call, the signal's exception can
-    surface as another error (e.g. pybind11's "Unable to convert call argument"), seen in 3 of 120 SIGTERM
-    trials under load."""
+    """``status``, or 0 when a signal has arrived (the node was stopping anyway)."""
     return 0 if _stopped_by is not None else status
 
 
@@ -145,6 +147,7 @@ def _run(argv: list[str]) -> int:
         except Exception as error:  # noqa: BLE001 - bad parameters or a policy file: one line, exit 2
             rclpy.logging.get_logger(NODE_NAME).fatal(f"cannot start: {type(error).__name__}: {error}")
             return _unless_stopped(2)
+        _stop_if_signalled()  # a signal during the start-up (loading the policy takes seconds)
         executor = _stoppable_executor()
         executor.add_node(node)
         try:
@@ -168,7 +171,7 @@ def _run(argv: list[str]) -> int:
         except Exception:  # noqa: BLE001
             if _stopped_by is None:
                 raise
-            # the signal interrupted an rclpy call half-way: what is left of the node goes with the process
+            # stopping anyway: what is left of the node goes with the process
         if _stopped_by is not None:
             rclpy.logging.get_logger(NODE_NAME).info(f"stopped by {_stopped_by}")
 
