@@ -30,8 +30,9 @@ tuned for the family task named by ``task``; by default the simulator's ``scenar
 one that cannot read the simulator's observation is refused at start (drive mode, or a policy that reads the
 simulator's scenario), else at the first observation, with one line and exit status 2.
 
-Exit status: 0 when done, and on SIGINT or SIGTERM whenever it lands (the node stops where it is, without a
-traceback; a second signal during the shutdown is ignored); 2 when it cannot start (bad parameters, an
+Exit status: 0 when done, and on SIGINT or SIGTERM whenever it lands (the node stops at its next wait, a
+fraction of a second, or after loading its policy; without a traceback; within 10 s in any case; a second
+signal during the shutdown is ignored); 2 when it cannot start (bad parameters, an
 unknown policy, a policy file that is missing or not for this task, a policy that cannot read the simulator's
 observation: one line); 1 when the simulator failed or did not answer within ``timeout``.
 ``agent_node --help`` prints the parameters and exits.
