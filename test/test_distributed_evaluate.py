@@ -96,6 +96,23 @@ def test_the_table_records_where_each_unit_ran(local_and_cluster):
 
 
 @pytest.mark.slow
+def test_a_private_local_instance_gives_the_same_returns(local_and_cluster, agents, tmp_path):
+    """``--address local --cpus 1`` (without the oracle, to stay short): every policy's returns as in one process."""
+    local, _, _, _ = local_and_cluster
+    with LoopbackNamespace() as ns:
+        result = ns.run(evaluate_argv(agents, tmp_path / "instance", "--no-oracle", "--address", "local", "--cpus",
+                                      "1"), timeout=300, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-3000:]
+    saved = read_json(tmp_path / "instance")
+    assert saved["sets"][0]["returns_usd_ha"] == {name: returns for name, returns in
+                                                  read_json(local)["sets"][0]["returns_usd_ha"].items()
+                                                  if name != et.ORACLE}
+    assert saved["execution"]["address"] == "local" and len(saved["execution"]["ray_nodes"]) == 1
+    assert saved["execution"]["units_per_node"] == {saved["execution"]["ray_nodes"][0]["node"]:
+                                                   (1 + 2 * len(AGENT_RUNS)) * NOISE_SEEDS}
+
+
+@pytest.mark.slow
 def test_the_local_run_equals_each_policy_run_directly(local_and_cluster, agents):
     """What the evaluation computed before it was cut into units: each policy through run_episodes on all the
     set's seasons, once per noise seed, with the set's terms; the oracle planned on the whole set."""
@@ -121,11 +138,11 @@ def test_the_local_run_equals_each_policy_run_directly(local_and_cluster, agents
 
 
 def test_the_oracle_in_season_chunks_equals_the_oracle_on_the_whole_set():
-    far = et.evaluation_sets(et._task(TASK), far_seasons=3)[1]
+    far = et.evaluation_sets(et._task(TASK), far_seasons=2)[1]
     terms = et.set_terms(far, et.TERMS_SEED + 1)
-    units = et.plan_units([far], [], [], noise_seeds=1, with_oracle=True, oracle_seasons_per_unit=2)
+    units = et.plan_units([far], [], [], noise_seeds=1, with_oracle=True, oracle_seasons_per_unit=1)
     chunks = [u for u in units if u.policy == et.ORACLE]
-    assert [(u.start, u.stop) for u in chunks] == [(0, 2), (2, 3)]
+    assert [(u.start, u.stop) for u in chunks] == [(0, 1), (1, 2)]
     results = [et.run_unit(u, far, terms, None) for u in chunks]
     whole, plans = et.oracle_returns(far, terms)
     assert np.concatenate([r.returns for r in results]).tolist() == whole.tolist()
