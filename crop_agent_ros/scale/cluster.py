@@ -1,8 +1,12 @@
 """One way to reach Ray: a local instance on loopback, or an existing cluster (``--address``).
 
 - ``address=None``: start a private local instance with ``cpus`` CPUs (default: the CPUs this process may
-  use), bound to 127.0.0.1 (Ray would otherwise pick the address of the machine's outside interface), no
-  dashboard, no usage statistics; it ends with the command.
+  use), no dashboard, no usage statistics; it ends with the command. Ray cannot be held to loopback by a
+  setting: it resolves 127.0.0.1 to the machine's outside address and its servers listen on every interface
+  (checked in a namespace with a second interface: the node took 10.77.0.1, the GCS and raylet ports listened
+  on ``*``). Ray 2.60 protects such a local instance with a token; to keep it off the network entirely, run the
+  command in a namespace that has only loopback (``unshare -n``, ``ip link set lo up``), as the tests and
+  ``crop-sim sweep-bench`` do.
 - ``address="auto"`` or ``"HOST:PORT"``: join a running cluster (``ray start --head`` on one machine,
   ``ray start --address=HOST:PORT`` on the others); its CPUs are the cluster's.
 
@@ -19,7 +23,6 @@ from dataclasses import dataclass
 
 from crop_sim_ros.usage import UsageError
 
-LOOPBACK = "127.0.0.1"
 ONE_THREAD = {name: "1" for name in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
 _ADDRESS = re.compile(r"^(auto|(\[[0-9a-fA-F:]+\]|[A-Za-z0-9_.-]+):\d{1,5})$")
 
@@ -65,7 +68,7 @@ def connect(address: str | None, cpus: int | None = None, env_vars: dict | None 
     if address is None:
         if cpus is not None and cpus < 1:
             raise UsageError(f"--cpus: {cpus} is not a positive number of CPUs")
-        ray.init(num_cpus=cpus or len(os.sched_getaffinity(0)), _node_ip_address=LOOPBACK, **common)
+        ray.init(num_cpus=cpus or len(os.sched_getaffinity(0)), **common)
         where = "local"
     else:
         try:
