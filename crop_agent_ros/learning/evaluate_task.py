@@ -653,7 +653,8 @@ def run_task(args) -> dict:
     curve_files = {str(path): run.group for runs in groups.values() for run in runs for _, path in run.checkpoints
                    if with_curves and str(path) not in agent_files}
     # every policy is loaded here first: a broken file is the user's, before any unit runs
-    policies = {RULE: rule, **{key: load_agent(Path(key), name) for key, name in {**agent_files, **curve_files}.items()}}
+    agent_names = {**agent_files, **curve_files}
+    policies = {RULE: rule, **{key: load_agent(Path(key), name) for key, name in agent_names.items()}}
     terms = [set_terms(evaluation_set, args.terms_seed + index) for index, evaluation_set in enumerate(sets)]
     units = plan_units(sets, list(agent_files), list(curve_files), args.noise_seeds, args.oracle)
     wall = {"setup_s": time.perf_counter() - started}
@@ -664,8 +665,7 @@ def run_task(args) -> dict:
         where, cluster_nodes = None, []
     else:
         from ..scale.evaluate_units import run_on_ray
-        sources = {RULE: rule, **{key: AgentFile.read(Path(key), name)
-                                  for key, name in {**agent_files, **curve_files}.items()}}
+        sources = {RULE: rule, **{key: AgentFile.read(Path(key), name) for key, name in agent_names.items()}}
         results, cluster = run_on_ray(units, sets, terms, sources, args.address, args.cpus, log)
         where, cluster_nodes = cluster.address, list(cluster.nodes)
     wall["units_s"] = round(time.perf_counter() - t0, 1)
@@ -750,9 +750,9 @@ def execution_record(address: str | None, cluster_nodes: list[dict], units: list
                      sets: list[EvaluationSet]) -> dict:
     """Where the units ran (for ``table.json`` only: the tables are the same wherever they ran)."""
     here = {"node": "this process", "pid": os.getpid()}
-    unit_log = [{"set": sets[u.set_index].name, "policy": u.policy, "noise_seed": u.noise_seed, "seasons": [u.start, u.stop],
-            "node": (r.node or here)["node"], "pid": (r.node or here)["pid"], "seconds": round(r.seconds, 2)}
-           for u, r in zip(units, results)]
+    unit_log = [{"set": sets[u.set_index].name, "policy": u.policy, "noise_seed": u.noise_seed,
+                 "seasons": [u.start, u.stop], "node": (r.node or here)["node"], "pid": (r.node or here)["pid"],
+                 "seconds": round(r.seconds, 2)} for u, r in zip(units, results)]
     per_node: dict[str, int] = {}
     for entry in unit_log:
         per_node[entry["node"]] = per_node.get(entry["node"], 0) + 1
