@@ -72,6 +72,7 @@ def test_configurations_are_the_grid_times_seeded_random_draws():
     ({"epochs": 3}, "unknown key(s) epochs"),
     ({"train": {"seed": 3}}, "train may not set seed"),
     ({"evaluate": {"agents": "x=y"}}, "evaluate may not set agents"),
+    ({"evaluate": {"address": "auto", "cpus": 2}}, "evaluate may not set address, cpus"),
     ({"train": {"timesteps": "many"}}, "argument --timesteps: invalid int value: 'many'"),
     ({"train": {"time-steps": 100}}, "crop-sim train has no option --time-steps"),
     ({"evaluate": {"noise-seeds": [1, 2]}}, "has value [1, 2]; give a number"),
@@ -98,6 +99,7 @@ def test_the_command_refuses_a_bad_configuration_or_address_in_one_line_before_s
     for argv, message in (([str(bad)], "invalid int value: 'many'"),
                           ([str(tmp_path / "none.yaml")], "none.yaml"),
                           ([str(good), "--address", "not an address"], "neither 'auto' nor HOST:PORT"),
+                          ([str(good), "--address", f"127.0.0.1:{_free_port()}"], "no Ray cluster answers there"),
                           ([str(good), "--resume", "--out", str(tmp_path / "o")], "holds no sweep to resume")):
         result = subprocess.run([CROP_SIM, "sweep", *argv], capture_output=True, text=True, cwd=tmp_path, timeout=120)
         assert result.returncode == 2, result.stderr
@@ -234,6 +236,13 @@ def test_a_sweep_joins_a_two_node_cluster_and_places_trials_on_both(tmp_path):
     assert [row["status"] for row in table.values()] == ["finished", "finished"]
     assert {row["node"] for row in table.values()} == {n["node"] for n in report["nodes"]}
     assert f"127.0.0.1:{port}: 2 node(s)" in result.stderr
+
+
+def _free_port() -> int:
+    import socket
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
 
 
 def _text(path: Path) -> str:

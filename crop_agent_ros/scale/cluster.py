@@ -71,6 +71,7 @@ def connect(address: str | None, cpus: int | None = None, env_vars: dict | None 
         ray.init(num_cpus=cpus or len(os.sched_getaffinity(0)), **common)
         where = "local"
     else:
+        probe(address)
         try:
             ray.init(address=address, **common)
         except ConnectionError as error:
@@ -78,6 +79,21 @@ def connect(address: str | None, cpus: int | None = None, env_vars: dict | None 
                              "with `ray start --head` or leave --address out for a local instance") from None
         where = address
     return Cluster(where, tuple(nodes()))
+
+
+def probe(address: str | None, timeout_s: float = 5.0) -> None:
+    """For a HOST:PORT address: UsageError unless something accepts a TCP connection there within ``timeout_s``
+    (``ray.init`` itself waits minutes on an address where nothing listens). None and ``auto``: nothing to do."""
+    import socket
+    if address is None or address == "auto":
+        return
+    host, _, port = address.rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
+            pass
+    except OSError as error:
+        raise UsageError(f"--address {address}: no Ray cluster answers there ({error.strerror or error}); start one "
+                         "with `ray start --head` or leave --address out for a local instance") from None
 
 
 def nodes() -> list[dict]:

@@ -69,13 +69,13 @@ import numpy as np
 
 from crop_sim_ros.usage import UsageError, user_input
 
-from .cluster import check_address
+from .cluster import check_address, probe
 
 TOP_KEYS = {"name", "tasks", "seeds", "train", "grid", "random", "samples", "search-seed", "evaluate", "retries",
             "cpus-per-trial"}
 DISTRIBUTIONS = ("uniform", "loguniform", "randint", "choice")
 RESERVED_TRAIN = {"task", "seed", "out", "name"}          # set by the sweep for each trial
-RESERVED_EVALUATE = {"task", "agents", "out", "address"}
+RESERVED_EVALUATE = {"task", "agents", "out", "address", "cpus"}  # a trial evaluates in its own worker
 MAX_TRIALS = 10_000
 EXIT_INTERRUPTED = 130
 AGENT = "agent"
@@ -459,7 +459,7 @@ def live_line(name: str, total: int, stream=None):
 
 def run(args) -> int:
     spec = SweepSpec.load(args.config)
-    check_address(args.address)
+    probe(check_address(args.address))
     out = (args.out if args.out is not None else Path("runs") / "sweeps" / spec.name).resolve()
     experiment = out / "tune"
     if out.exists() and not out.is_dir():
