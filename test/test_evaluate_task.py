@@ -365,3 +365,26 @@ def test_crop_sim_evaluate_task_runs_from_the_command_line(evaluation, trained_r
                    "--out", str(out)])
     assert status == 0
     assert {r["policy"] for r in rows_of(out)} >= {"budget-rule", "ppo"}
+
+
+def test_the_oracle_cache_gives_the_same_tables_and_misses_on_other_terms(evaluation, trained_run, tmp_path):
+    first_out, _, _ = evaluation
+    cache = tmp_path / "cache"
+    common = ["--task", TASK, "--agents", f"ppo={trained_run}", "--noise-seeds", "2", "--far-seasons", "2",
+              "--sets", "heldout-real,far-benton", "--bootstrap", "200", "--oracle-cache", str(cache)]
+    filled = et.run_task(parse([*common, "--out", str(tmp_path / "a")]))
+    assert len(list(cache.glob("*.json"))) == 2      # heldout-real (5 seasons) and far-benton (2): one chunk each
+    reused = et.run_task(parse([*common, "--out", str(tmp_path / "b")]))
+    oracle_units = [u for u in reused["execution"]["unit_log"] if u["policy"] == "oracle"]
+    assert [u["node"] for u in oracle_units] == ["oracle cache"] * 2
+    assert [u["node"] for u in filled["execution"]["unit_log"] if u["policy"] == "oracle"] == ["this process"] * 2
+    # the same tables as each other and as the fixture's run without a cache
+    assert (tmp_path / "a" / "table.csv").read_bytes() == (tmp_path / "b" / "table.csv").read_bytes()
+    assert [s["oracle_returns_usd_ha"] for s in reused["sets"]] == [s["oracle_returns_usd_ha"] for s in filled["sets"]]
+    assert [s["oracle_plans"] for s in reused["sets"]] == [s["oracle_plans"] for s in filled["sets"]]
+    assert [r for r in rows_of(tmp_path / "b") if r["kind"] == "oracle"] == [
+        r for r in rows_of(first_out) if r["kind"] == "oracle"]
+    # other terms are other plans: nothing found
+    other = et.run_task(parse([*common, "--terms-seed", "7", "--no-curves", "--out", str(tmp_path / "c")]))
+    assert [u["node"] for u in other["execution"]["unit_log"] if u["policy"] == "oracle"] == ["this process"] * 2
+    assert len(list(cache.glob("*.json"))) == 4

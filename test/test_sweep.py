@@ -134,7 +134,8 @@ def wait_for(predicate, timeout: float, what: str) -> None:
 @pytest.mark.slow
 def test_a_sweep_on_a_local_instance_writes_a_row_per_trial_finished_or_failed(tmp_path):
     # history 400 is refused by `crop-sim train` itself (at run time: the parser takes any integer)
-    config = write_config(tmp_path, seeds=[0, 1], grid={"history": [1, 400]}, retries=0)
+    config = write_config(tmp_path, seeds=[0, 1], grid={"history": [1, 400]}, retries=0,
+                          evaluate={**TINY_EVALUATE, "oracle": True})
     out = tmp_path / "out"
     with LoopbackNamespace() as ns:
         result = ns.run([CROP_SIM, "sweep", str(config), "--out", str(out), "--cpus", "2"], timeout=600, cwd=tmp_path)
@@ -160,6 +161,10 @@ def test_a_sweep_on_a_local_instance_writes_a_row_per_trial_finished_or_failed(t
         assert float(row["heldout-real/agent_return_usd_ha"]) == pytest.approx(agent["return_usd_ha"], rel=1e-12)
         assert row["node"] and row["node_address"] == "127.0.0.1"
         assert "ran 1024 steps (1024 asked)" in (trial / "trial.log").read_text()   # the trial's own output
+    # the trials share the oracle's plan of the 5 held-out seasons: one cached file, the same oracle return
+    assert len(list((out / "oracle-cache").glob("*.json"))) == 1
+    assert table["benton-quota-c00-s0"]["heldout-real/oracle_return_usd_ha"] == \
+        table["benton-quota-c00-s1"]["heldout-real/oracle_return_usd_ha"] != ""
     report = json.loads((out / "table.json").read_text())
     assert report["best"]["benton-quota"]["config"] == "c00"
     assert report["best"]["benton-quota"]["seeds"] == [0, 1]

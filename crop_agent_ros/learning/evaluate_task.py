@@ -128,6 +128,9 @@ def add_task_arguments(parser) -> None:
                              "machine; same results as without it (default: in this process, no Ray)")
     parser.add_argument("--cpus", type=int, default=None,
                         help="CPUs of the private Ray instance of --address local (default: this process's CPUs)")
+    parser.add_argument("--oracle-cache", type=Path, default=None,
+                        help="a folder keeping the oracle's plans by season, terms and oracle code: a later "
+                             "evaluation of the same sets (another agent, another trial of a sweep) reuses them")
 
 
 def add_arguments(parser) -> None:
@@ -396,6 +399,60 @@ def run_units_here(units: list[Unit], sets: list[EvaluationSet], terms: list[dic
     return results
 
 
+ORACLE_CODE = ("crop_agent_ros/policies/family_oracle.py", "crop_agent_ros/policies/family_dp.py",
+               "crop_agent_ros/policies/rollout.py", "crop_sim_ros/task", "crop_sim_ros/model", "crop_sim_ros/weather")
+
+
+def oracle_code_digest() -> str:
+    """A digest of the source the oracle's result depends on (its search, the environment, the model, the
+    weather): a cached plan is used only by the code that made it."""
+    root = Path(__file__).resolve().parents[2]
+    digest = hashlib.sha256()
+    for entry in ORACLE_CODE:
+        for path in sorted((root / entry).rglob("*.py")) if (root / entry).is_dir() else [root / entry]:
+            digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
+
+
+def oracle_cache_key(unit: Unit, evaluation_set: EvaluationSet, terms: dict, code: str) -> str:
+    """The key of an oracle unit's result: the set's scenario (every field), the unit's seasons, their terms and
+    the oracle's code."""
+    digest = hashlib.sha256(code.encode())
+    digest.update(repr(evaluation_set.scenario).encode())
+    digest.update(np.asarray(evaluation_set.seasons[unit.start:unit.stop], dtype=np.int64).tobytes())
+    for name in sorted(terms):
+        digest.update(name.encode() + np.ascontiguousarray(terms[name][unit.start:unit.stop], dtype=float).tobytes())
+    return digest.hexdigest()[:32]
+
+
+class OracleCache:
+    """Oracle units' results in a folder, one JSON file per key (written whole: a temporary file renamed, so
+    trials of a sweep may share the folder)."""
+
+    def __init__(self, folder: Path):
+        self.folder = Path(folder)
+        if self.folder.exists() and not self.folder.is_dir():
+            raise UsageError(f"--oracle-cache: {self.folder} exists and is not a folder")
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.code = oracle_code_digest()
+
+    def get(self, key: str) -> UnitResult | None:
+        path = self.folder / f"{key}.json"
+        try:
+            stored = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+        return UnitResult(np.asarray(stored["returns"], dtype=float), stored["plans"], 0.0,
+                          {"node": "oracle cache", "pid": 0})
+
+    def put(self, key: str, result: UnitResult) -> None:
+        path = self.folder / f"{key}.json"
+        temporary = path.with_suffix(f".{os.getpid()}.tmp")
+        temporary.write_text(json.dumps(_plain({"returns": result.returns, "plans": result.plans})),
+                             encoding="utf-8")
+        os.replace(temporary, path)
+
+
 def oracle_returns(evaluation_set: EvaluationSet, terms: dict) -> tuple[np.ndarray, list[dict]]:
     """(M,) returns (USD/ha) of the hindsight oracle's plan of each season under its terms, run in the
     environment with noise seed 0 (the plan does not read the observation), and each plan's summary."""
@@ -660,16 +717,29 @@ def run_task(args) -> dict:
     wall = {"setup_s": time.perf_counter() - started}
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    cache = OracleCache(args.oracle_cache) if args.oracle_cache is not None else None
+    cached = {}
+    if cache is not None:
+        keys = {u: oracle_cache_key(u, sets[u.set_index], terms[u.set_index], cache.code)
+                for u in units if u.policy == ORACLE}
+        cached = {u: hit for u, key in keys.items() if (hit := cache.get(key)) is not None}
+        log(f"oracle cache {args.oracle_cache}: {len(cached)} of {len(keys)} oracle units found")
+    to_run = [u for u in units if u not in cached]
     if args.address is None:
-        results = run_units_here(units, sets, terms, policies, log)
+        ran = run_units_here(to_run, sets, terms, policies, log)
         where, cluster_nodes = None, []
     else:
         from ..scale.evaluate_units import run_on_ray
         sources = {RULE: rule, **{key: AgentFile.read(Path(key), name) for key, name in agent_names.items()}}
-        results, cluster = run_on_ray(units, sets, terms, sources, args.address, args.cpus, log)
+        ran, cluster = run_on_ray(to_run, sets, terms, sources, args.address, args.cpus, log)
         where, cluster_nodes = cluster.address, list(cluster.nodes)
+    if cache is not None:
+        for unit, result in zip(to_run, ran):
+            if unit.policy == ORACLE:
+                cache.put(keys[unit], result)
     wall["units_s"] = round(time.perf_counter() - t0, 1)
-    done = dict(zip(units, results))
+    done = {**cached, **dict(zip(to_run, ran))}
+    results = [done[u] for u in units]
     k = args.noise_seeds
 
     def returns_of(index: int, key: str) -> np.ndarray:

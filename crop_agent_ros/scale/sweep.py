@@ -34,7 +34,9 @@ draws. Every option value is checked by the commands' own parsers before Ray sta
 writes under ``<out>/trials/<trial>/``: ``run/`` (the training run: checkpoints, curve, ``model.zip``), ``eval/``
 (the evaluation's tables), ``trial.log`` (its output) and ``attempts.log`` (one line per attempt: node and
 process). A retry reuses a finished training (``run/summary.json``) and redoes the rest; an unfinished
-training is started again from scratch (training is deterministic for its seed).
+training is started again from scratch (training is deterministic for its seed). The trials share the
+oracle's plans (``<out>/oracle-cache``, ``crop-sim evaluate --oracle-cache``): the oracle of a task's sets is
+planned once, by the first trial that evaluates them, not once per trial.
 
 Outputs in ``<out>``: ``table.csv`` and ``table.json`` (a row per planned trial: ``finished``, ``failed`` with
 its error, or ``unfinished`` (an interrupted sweep); hyperparameters, node, attempts, training figures, and per evaluation set the
@@ -75,7 +77,7 @@ TOP_KEYS = {"name", "tasks", "seeds", "train", "grid", "random", "samples", "sea
             "cpus-per-trial"}
 DISTRIBUTIONS = ("uniform", "loguniform", "randint", "choice")
 RESERVED_TRAIN = {"task", "seed", "out", "name"}          # set by the sweep for each trial
-RESERVED_EVALUATE = {"task", "agents", "out", "address", "cpus"}  # a trial evaluates in its own worker
+RESERVED_EVALUATE = {"task", "agents", "out", "address", "cpus", "oracle-cache"}  # set per trial
 MAX_TRIALS = 10_000
 EXIT_INTERRUPTED = 130
 AGENT = "agent"
@@ -359,7 +361,8 @@ def run_trial(param_space: dict) -> None:
                     "selected_timesteps": summary["selected"]["timesteps"], "training_reused": reused}
         tune.report({"stage": "trained", "attempt": attempt, **node, **training})
         shutil.rmtree(eval_dir, ignore_errors=True)
-        _command("evaluate", [*trial["evaluate_argv"], "--agents", f"{AGENT}={run_dir}", "--out", str(eval_dir)])
+        _command("evaluate", [*trial["evaluate_argv"], "--agents", f"{AGENT}={run_dir}", "--out", str(eval_dir),
+                              "--oracle-cache", str(Path(param_space["out"]) / "oracle-cache")])
         evaluation = json.loads((eval_dir / "table.json").read_text())
     tune.report({"stage": "evaluated", "attempt": attempt, **node, **training,
                  "trial_wall_s": round(time.perf_counter() - started, 1), **evaluation_figures(evaluation)})
