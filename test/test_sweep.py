@@ -100,6 +100,8 @@ def test_the_command_refuses_a_bad_configuration_or_address_in_one_line_before_s
                           ([str(tmp_path / "none.yaml")], "none.yaml"),
                           ([str(good), "--address", "not an address"], "neither 'auto' nor HOST:PORT"),
                           ([str(good), "--address", f"127.0.0.1:{_free_port()}"], "no Ray cluster answers there"),
+                          ([str(good), "--address", "auto", "--cpus", "2"], "a cluster's CPUs are its nodes'"),
+                          ([str(good), "--cpus", "0"], "--cpus 0: must be >= 1"),
                           ([str(good), "--resume", "--out", str(tmp_path / "o")], "holds no sweep to resume")):
         result = subprocess.run([CROP_SIM, "sweep", *argv], capture_output=True, text=True, cwd=tmp_path, timeout=120)
         assert result.returncode == 2, result.stderr

@@ -462,6 +462,9 @@ def live_line(name: str, total: int, stream=None):
 
 def run(args) -> int:
     spec = SweepSpec.load(args.config)
+    if args.cpus is not None and (args.address is not None or args.cpus < 1):
+        raise UsageError(f"--cpus {args.cpus}: " + ("sets the CPUs of the local instance; a cluster's CPUs are "
+                                                    "its nodes'" if args.address is not None else "must be >= 1"))
     probe(check_address(args.address))
     out = (args.out if args.out is not None else Path("runs") / "sweeps" / spec.name).resolve()
     experiment = out / "tune"
