@@ -196,3 +196,14 @@ def test_a_wrong_action_kind_or_a_residual_without_its_rule_is_refused(residual_
     (tmp_path / "model.json").write_text(json.dumps({**config, "action_kind": "mm"}))
     with pytest.raises(ValueError, match=r"the network takes \(30,\).*needs \(29,\)"):
         LearnedPolicy(tmp_path / "model.zip")
+
+
+def test_training_a_residual_without_the_tasks_tuned_rule_is_refused(tmp_path, monkeypatch):
+    from crop_agent_ros.policies import family_tuning
+    from crop_sim_ros.usage import UsageError
+    missing = tmp_path / "family_benton-sensing.json"
+    monkeypatch.setattr(family_tuning, "rule_file", lambda task: missing)
+    with pytest.raises(UsageError, match=r"--action residual corrects the task's tuned rule: .*family_benton-sensing"
+                                         r"\.json is missing: run `crop-sim tune-rule --task benton-sensing`"):
+        _train(tmp_path / "run")
+    assert not (tmp_path / "run" / "model.zip").exists()

@@ -154,7 +154,8 @@ def train_task(args) -> dict:
         try:
             rule = tuned_rule(scenario.name)
         except FileNotFoundError as error:
-            raise SystemExit(f"crop-sim train --action residual: {error}") from None
+            from crop_sim_ros.usage import UsageError
+            raise UsageError(f"--action residual corrects the task's tuned rule: {error}") from None
     interface = AgentInterface(scaler, args.history, action_kind, rule)
     venv = training_env(scenario, args.n_envs, args.seed, interface, float(params.fields.harvest_index[0]),
                         params.dry_matter_fraction)
