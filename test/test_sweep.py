@@ -267,3 +267,11 @@ def test_the_scaling_benchmark_runs_a_valid_sweep_in_a_loopback_only_namespace()
     seen = subprocess.run([*bench.loopback_prefix(), "ip", "-o", "link", "show", "up"], capture_output=True,
                           text=True, timeout=30)
     assert seen.returncode == 0 and [line.split(":")[1].strip() for line in seen.stdout.splitlines()] == ["lo"]
+
+
+def test_the_readme_example_configuration_plans_the_trials_it_says():
+    text = (ROOT / "README.md").read_text()
+    block = text.split("```yaml\n# quota-lr.yaml", 1)[1].split("```", 1)[0]
+    planned = SweepSpec.from_dict(yaml.safe_load(block), "README quota-lr.yaml")
+    assert "2 tasks x (2 learning rates x 2 random draws) x 5 seeds = 40 trials" in text
+    assert len(planned.configurations) == 4 and len(planned.trials()) == 40
