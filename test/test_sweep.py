@@ -271,7 +271,7 @@ def test_the_scaling_benchmark_runs_a_valid_sweep_in_a_loopback_only_namespace()
 
 def test_the_readme_example_configuration_plans_the_trials_it_says():
     text = (ROOT / "README.md").read_text()
-    block = text.split("```yaml\n# quota-lr.yaml", 1)[1].split("```", 1)[0]
+    block = next(b.split("```", 1)[0] for b in text.split("```yaml\n")[1:] if b.startswith("# quota-lr.yaml"))
     planned = SweepSpec.from_dict(yaml.safe_load(block), "README quota-lr.yaml")
     assert "2 tasks x (2 learning rates x 2 random draws) x 5 seeds = 40 trials" in text
     assert len(planned.configurations) == 4 and len(planned.trials()) == 40
