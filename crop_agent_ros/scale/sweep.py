@@ -680,9 +680,15 @@ def plot(path: Path, spec: SweepSpec, rows: list[dict]) -> None:
                 ax.legend(fontsize=8)
             ax.set_ylabel(f"{key.split('/')[0]} regret, USD/ha")
         failed = [r["config"] for r in rows if r["task"] == task and r["status"] != "finished"]
-        ax.set_xticks(range(len(configs)), configs, fontsize=8)
+        labels = [config + "".join(f"\n{k}={_short(v)}" for k, v in spec.configurations[int(config[1:])].items())
+                  for config in configs]
+        ax.set_xticks(range(len(configs)), labels, fontsize=7)
         ax.set_title(f"{task}" + (f" ({len(failed)} trial(s) not finished)" if failed else ""), fontsize=9)
     fig.suptitle(f"sweep {spec.name}: agent regret per configuration (points: seeds)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _short(value) -> str:
+    return f"{value:.3g}" if isinstance(value, float) else str(value)
