@@ -1,4 +1,4 @@
-"""One way to reach Ray: a local instance on loopback, or an existing cluster (``--address``).
+"""One way to reach Ray: a private local instance, or an existing cluster (``--address``).
 
 - ``address=None``: start a private local instance with ``cpus`` CPUs (default: the CPUs this process may
   use), no dashboard, no usage statistics; it ends with the command. Ray cannot be held to loopback by a
@@ -35,10 +35,6 @@ class Cluster:
     address: str
     nodes: tuple[dict, ...]
 
-    @property
-    def cpus(self) -> int:
-        return int(sum(node["cpus"] for node in self.nodes))
-
     def describe(self) -> str:
         nodes = ", ".join(f"{node['node']} ({node['address']}, {node['cpus']:g} CPU)" for node in self.nodes)
         return f"Ray {self.address}: {len(self.nodes)} node(s): {nodes}"
@@ -51,7 +47,7 @@ def check_address(address: str | None) -> str | None:
     raise UsageError(f"--address: {address!r} is neither 'auto' nor HOST:PORT (e.g. 127.0.0.1:6379)")
 
 
-def connect(address: str | None, cpus: int | None = None, env_vars: dict | None = None) -> Cluster:
+def connect(address: str | None, cpus: int | None = None) -> Cluster:
     """Connect this process to Ray (see the module docstring); UsageError if no cluster answers at
     ``address`` or ``cpus`` is not positive."""
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")   # no usage report to an outside server
@@ -61,8 +57,7 @@ def connect(address: str | None, cpus: int | None = None, env_vars: dict | None 
     from crop_sim_ros.task.scenario import DATA_DIR_ENV, default_data_dir
 
     address = check_address(address)
-    worker_env = {**ONE_THREAD, **(env_vars or {})}
-    worker_env.setdefault(DATA_DIR_ENV, str(default_data_dir().resolve()))
+    worker_env = {**ONE_THREAD, DATA_DIR_ENV: str(default_data_dir().resolve())}
     common = dict(include_dashboard=False, log_to_driver=False, logging_level=logging.WARNING,
                   runtime_env={"env_vars": worker_env}, configure_logging=True)
     if address is None:
@@ -75,8 +70,7 @@ def connect(address: str | None, cpus: int | None = None, env_vars: dict | None 
         try:
             ray.init(address=address, **common)
         except ConnectionError as error:
-            raise UsageError(f"--address {address}: no Ray cluster answers there ({_first_line(error)}); start one "
-                             "with `ray start --head` or leave --address out for a local instance") from None
+            raise _no_cluster(address, _first_line(error)) from None
         where = address
     return Cluster(where, tuple(nodes()))
 
@@ -92,8 +86,12 @@ def probe(address: str | None, timeout_s: float = 5.0) -> None:
         with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s):
             pass
     except OSError as error:
-        raise UsageError(f"--address {address}: no Ray cluster answers there ({error.strerror or error}); start one "
-                         "with `ray start --head` or leave --address out for a local instance") from None
+        raise _no_cluster(address, error.strerror or str(error)) from None
+
+
+def _no_cluster(address: str, why: str) -> UsageError:
+    return UsageError(f"--address {address}: no Ray cluster answers there ({why}); start one with `ray start "
+                      "--head` or leave --address out for a local instance")
 
 
 def nodes() -> list[dict]:

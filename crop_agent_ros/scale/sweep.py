@@ -81,7 +81,6 @@ RESERVED_EVALUATE = {"task", "agents", "out", "address", "cpus", "oracle-cache"}
 MAX_TRIALS = 10_000
 EXIT_INTERRUPTED = 130
 AGENT = "agent"
-STATUSES = ("finished", "failed", "unfinished")
 
 
 def add_arguments(parser) -> None:
