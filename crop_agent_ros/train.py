@@ -139,6 +139,13 @@ def feature_action_wrapper(venv, action_mode: str, feature_set: str = "full", ma
     return FeatureActionWrapper()
 
 
+def silent_logger():
+    """An SB3 logger that writes nowhere: with ``verbose=0`` SB3's own default still makes an empty
+    ``/tmp/SB3-<time>`` folder on every ``learn`` (245 of them after one session's tests and sweeps)."""
+    from stable_baselines3.common.logger import Logger
+    return Logger(folder=None, output_formats=[])
+
+
 def validation_scenario(scenario, n_seasons: int, seed: int):
     """Fresh generated seasons: the training scenario's generator with a seed its pool does not use
     (seed + 10,007 + the training seed). A mixture validates on its first part's generator, re-seeded alike."""
@@ -262,6 +269,7 @@ def train(args) -> dict:
                 gae_lambda=args.gae_lambda, clip_range=args.clip_range, ent_coef=args.ent_coef,
                 policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init}, seed=args.seed,
                 device="cpu", verbose=0)
+    model.set_logger(silent_logger())
     rows: list[dict] = []
     started = time.perf_counter()
     best = {"validation_return": -np.inf, "timesteps": 0}

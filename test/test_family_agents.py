@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import tempfile
 
 import numpy as np
 import pytest
@@ -54,8 +55,12 @@ def _train(tmp_path, *extra: str):
 
 @pytest.mark.parametrize("extra, algorithm, history", [(("--history", "4"), "ppo", 4),
                                                        (("--algorithm", "recurrent-ppo"), "recurrent-ppo", 1)])
-def test_tiny_training_writes_loadable_policies(tmp_path, extra, algorithm, history):
+def test_tiny_training_writes_loadable_policies(tmp_path, monkeypatch, extra, algorithm, history):
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))  # where SB3's default logger makes its folder
     summary, out = _train(tmp_path, *extra)
+    assert not list(scratch.glob("SB3-*")), "training left an SB3 log folder in the temporary directory"
     assert summary["steps_run"] >= 512 and summary["algorithm"] == algorithm
     config = json.loads((out / "model.json").read_text())
     assert config["history"] == history and len(config["scaler"]["mean"]) == EXTENDED.size

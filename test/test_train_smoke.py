@@ -1,19 +1,24 @@
 """A few hundred steps of ``crop-sim train`` into a temporary directory write every promised file."""
 
 import json
+import tempfile
 
 import pytest
 
 from crop_agent_ros.cli import main
 
 
-def test_train_smoke(tmp_path):
+def test_train_smoke(tmp_path, monkeypatch):
     out = tmp_path / "run"
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))  # where SB3's default logger makes its folder
     code = main(["train", "--timesteps", "256", "--n-envs", "2", "--n-steps", "64", "--batch-size", "64",
                  "--n-epochs", "1", "--eval-freq", "128", "--eval-seeds", "1", "--validation-seasons", "2",
                  "--eval-scenario", "benton-2000", "--seed", "3", "--net-arch", "16", "--out", str(out),
                  "--no-progress"])
     assert code == 0
+    assert not list(scratch.glob("SB3-*")), "training left an SB3 log folder in the temporary directory"
     for name in ("model.zip", "model.json", "learning_curve.csv", "learning_curve.png", "config.json"):
         assert (out / name).stat().st_size > 0, name
     config = json.loads((out / "config.json").read_text())

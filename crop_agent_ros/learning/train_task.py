@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..train import validation_scenario
+from ..train import silent_logger, validation_scenario
 from .agent import ACTION_KINDS, ACTION_SCALE_MM, ALGORITHMS, RESIDUAL_SPAN_MM, AgentInterface, ObservationScaler
 
 REWARD_SCALE_USD = 1000.0
@@ -171,6 +171,7 @@ def train_task(args) -> dict:
         from sb3_contrib import RecurrentPPO
         model = RecurrentPPO("MlpLstmPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init,
                                                                    "lstm_hidden_size": 64}, **common)
+    model.set_logger(silent_logger())
     if action_kind == "residual":
         # Start at the rule: a zero last layer gives a = 0 (no correction) for every input, so the deterministic
         # policy at step 0 is the tuned rule; the layer's gradient is not zero, so it (and then the hidden
