@@ -163,7 +163,8 @@ def run(args) -> int:
                             "other_cpus": round(others, 2), "load": machine})
             print(f"round {round_index}, {cpus} CPU(s): {finished}/{len(rows)} trials in {wall:.1f} s = "
                   f"{per_hour:.0f} trials/hour; the sweep used {sweep_cpus:.2f} CPUs, other processes "
-                  f"{others:.2f} (CPUs busy {', '.join(f'{b:.0%}' for b in machine['cpu_busy'])})", flush=True)
+                  f"{others:.2f}, the hypervisor {machine['stolen_cpus']:.2f} (CPUs busy "
+                  f"{', '.join(f'{b:.0%}' for b in machine['cpu_busy'])})", flush=True)
         ratios.append(per_cpus[2] / per_cpus[1])
         print(f"round {round_index}: 2 CPUs / 1 CPU = {ratios[-1]:.2f}x", flush=True)
     print(f"median ratio over {len(ratios)} round(s): {statistics.median(ratios):.2f}x "
