@@ -117,6 +117,13 @@ COMMAND_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=
 # publishes with this QoS too.
 COMMAND_SUBSCRIPTION_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                                       durability=DurabilityPolicy.VOLATILE)
+# The simulator's answers on ~/irrigation_status, one per command: a reliable writer drops from its history
+# whatever exceeds the depth, acknowledged or not, so an answer that must be resent to a reader starved of CPU
+# (a burst's answers outrun delivery) is lost at depth 10, as a client's depth-10 command queue lost its burst.
+# Depth 1,000 keeps the answers of a burst of 1,000 commands for a lagging reader; keep-last, not keep-all, so a
+# stuck reader can never block the simulator's publish.
+COMMAND_STATUS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.VOLATILE)
 # /clock: what ROS time sources subscribe with (rclpy's TimeSource and rclcpp's ClockQoS: best effort,
 # volatile, depth 1). A transient-local publisher gave such a subscriber nothing more: it still read 0 until
 # the next step.

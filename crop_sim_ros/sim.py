@@ -238,7 +238,8 @@ class SimNode(Node):
         self._pub_result = self.create_publisher(Float64MultiArray, "~/" + ri.STEP_RESULT_TOPIC, ri.STATE_QOS)
         self._pub_terms = self.create_publisher(Float64MultiArray, "~/" + ri.FARM_TERMS_TOPIC, ri.STATE_QOS)
         self._pub_clock = self.create_publisher(Clock, ri.CLOCK_TOPIC, ri.CLOCK_QOS)
-        self._pub_status = self.create_publisher(DiagnosticStatus, "~/" + ri.IRRIGATION_STATUS_TOPIC, ri.COMMAND_QOS)
+        self._pub_status = self.create_publisher(DiagnosticStatus, "~/" + ri.IRRIGATION_STATUS_TOPIC,
+                                                 ri.COMMAND_STATUS_QOS)
         self._pub_node_status = self.create_publisher(DiagnosticStatus, "~/" + ri.STATUS_TOPIC, ri.STATE_QOS)
         self._msg_obs = ri.observation_message(np.zeros(PAPER.size, np.float32))  # relabelled at each reset
         self._msg_biomass = ri.float64_array(ri.BIOMASS_LABELS, (0, 0))
