@@ -275,3 +275,19 @@ def test_the_readme_example_configuration_plans_the_trials_it_says():
     planned = SweepSpec.from_dict(yaml.safe_load(block), "README quota-lr.yaml")
     assert "2 tasks x (2 learning rates x 2 random draws) x 5 seeds = 40 trials" in text
     assert len(planned.configurations) == 4 and len(planned.trials()) == 40
+
+
+def test_the_benchmark_counts_the_cpu_of_its_namespace_and_not_of_the_rest_of_the_machine():
+    """A child of the namespaced process burns about 1 CPU-s (parented like Ray's workers: not by us); a busy
+    process outside the namespace runs as long and must not be counted."""
+    from crop_agent_ros.scale import bench
+    burn = "import time\nend = time.process_time() + 1.0\nwhile time.process_time() < end: pass\n"
+    outside = subprocess.Popen([sys.executable, "-c", burn])
+    inside = subprocess.Popen([*bench.loopback_prefix(), "sh", "-c", f"{sys.executable} -c '{burn}' & wait"])
+    try:
+        counter = bench.NamespaceCpu(inside.pid, interval_s=0.05)
+        assert inside.wait(timeout=60) == 0
+        seen_cpu_s = counter.stop()
+    finally:
+        outside.wait(timeout=60)
+    assert 0.8 <= seen_cpu_s <= 1.5, seen_cpu_s
