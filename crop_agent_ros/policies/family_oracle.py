@@ -98,7 +98,9 @@ class FieldProblem:
 
     ``yield_value_per_t``: reward units per t ha-1 of dry yield; ``water_cost_per_mm``: reward units per mm
     applied (>= 0); ``quota_mm``: the season's allocation (inf: none); ``capacity_mm_per_day``: most applied
-    in one day; ``event_cost``: reward units per day with water."""
+    in one day; ``event_cost``: reward units per day with water; ``frozen_days``: the schedule's first
+    ``frozen_days`` days are already applied, and the search keeps them as the start schedule has them (a
+    re-plan in mid-season, :mod:`crop_agent_ros.policies.family_mpc`; such problems need given starts)."""
 
     context: SeasonContext
     yield_value_per_t: float
@@ -106,8 +108,13 @@ class FieldProblem:
     quota_mm: float
     capacity_mm_per_day: float
     event_cost: float = 0.0
+    frozen_days: int = 0
 
     def __post_init__(self) -> None:
+        if not 0 <= int(self.frozen_days) <= self.days:
+            raise ValueError(f"family oracle: frozen_days of {self.context.name!r} must be in [0, {self.days}] "
+                             f"(the season's days), got {self.frozen_days!r}")
+        object.__setattr__(self, "frozen_days", int(self.frozen_days))
         for name in ("yield_value_per_t", "water_cost_per_mm", "quota_mm", "capacity_mm_per_day", "event_cost"):
             value = float(getattr(self, name))
             if np.isnan(value) or value < 0 or (np.isinf(value) and name != "quota_mm"):
@@ -162,6 +169,7 @@ class _Fields:
         self.quota_mm = np.maximum(np.array([p.quota_mm for p in problems]) - QUOTA_MARGIN_MM, 0.0)
         self.capacity_mm = np.array([p.capacity_mm_per_day for p in problems])
         self.event_cost = np.array([p.event_cost for p in problems])
+        self.first_free_day = np.array([p.frozen_days for p in problems], dtype=np.int64)
         first = problems[0].context.params
         self.shared = all(all(np.array_equal(getattr(p.context.params, f.name), getattr(first, f.name))
                               for f in fields(model.FieldParameters)) for p in problems[1:])
@@ -405,6 +413,9 @@ DEFAULT_STARTS = ("plan", "family")
 def _start_schedules(fs: _Fields, start) -> np.ndarray:
     """Start schedules (D, P): ``start`` is a START_NAMES entry, or one feasible (D,) schedule per field."""
     if isinstance(start, str):
+        if np.any(fs.first_free_day > 0):
+            raise ValueError(f"family oracle: the {start!r} start plans whole seasons; problems with frozen days "
+                             f"need given start schedules (the applied days, then a plan)")
         makers = {"plan": _plan_start, "family": _family_start, "uniform": _uniform_start}
         if start not in makers:
             raise ValueError(f"family oracle: unknown start {start!r}; known: {', '.join(START_NAMES)}, or schedules")
@@ -464,9 +475,11 @@ class _Moves:
         return out
 
 
-def _moves(a: np.ndarray, last: int, step: float, cap: float, window: int, event_cost: float) -> _Moves:
-    """+step and -step on each day of 0..last (within [0, cap]), shifts of step mm between days at most
-    ``window`` apart, and with an event cost "drop a day" and "merge a day into a wet day within window"."""
+def _moves(a: np.ndarray, last: int, step: float, cap: float, window: int, event_cost: float,
+           first: int = 0) -> _Moves:
+    """+step and -step on each day of first..last (within [0, cap]), shifts of step mm between days at most
+    ``window`` apart, and with an event cost "drop a day" and "merge a day into a wet day within window"
+    (days before ``first`` are frozen: no move touches them)."""
     days = np.arange(last + 1)
     x = a[:last + 1]
     parts = []
@@ -493,7 +506,8 @@ def _moves(a: np.ndarray, last: int, step: float, cap: float, window: int, event
             ok = (x[i] > 0.0) & (x[j] > 0.0) & (x[i] + x[j] <= cap)
             add(i[ok], np.zeros(int(ok.sum())), j[ok], x[i][ok] + x[j][ok], MERGE)
     days_, values, delta, kind = (np.concatenate(z) for z in zip(*parts))
-    return _Moves(days_.astype(np.int64), values, delta, kind)
+    free = np.all((days_ < 0) | (days_ >= first), axis=1)
+    return _Moves(days_[free].astype(np.int64), values[free], delta[free], kind[free])
 
 
 def _pair_moves(a: np.ndarray, moves: _Moves, gains: np.ndarray, step: float, cap: float, window: int,
@@ -560,7 +574,7 @@ def _local_search(fs: _Fields, schedules: np.ndarray, finest_step_mm: float, fir
         current = schedules[:, slots]
         room = fs.quota_mm[slots] - current.sum(axis=0)
         moves = [_moves(current[:, k], int(last_day[i]), step[i], fs.capacity_mm[i], shift_window_days,
-                        fs.event_cost[i]) for k, i in enumerate(slots)]
+                        fs.event_cost[i], int(fs.first_free_day[i])) for k, i in enumerate(slots)]
         base, runs = _run(fs, current, slots, *_stacked(moves))
         ends = np.cumsum([len(mv) for mv in moves])
         gains = [g - base.returns[k] for k, g in enumerate(np.split(runs.returns, ends[:-1]))]

@@ -1,0 +1,306 @@
+"""A causal model-predictive controller (MPC) for the task family: how much of the tuned rule's regret a
+controller can remove without knowing the weather to come.
+
+The hindsight oracle (:mod:`crop_agent_ros.policies.family_oracle`) knows every future day's weather; no
+controller can, so part of any controller's regret is the price of not knowing it. This controller knows
+what a farm's controller can know on day t, and nothing more:
+
+- SIMPLE and the crop's published parameters, the season's terms (tuber price, water cost, quota: columns of
+  the observation), the task's capacity and event cost;
+- the weather of days 0..t (today's is in the observation; a weather network publishes it daily) and the
+  water applied on days 0..t-1 (the observation's ``irrigation_yesterday_mm``), hence the crop's exact state;
+- not the weather after today: in its place ``scenarios`` continuations, seasons of the task's weather
+  generator drawn with :data:`POOL_SEED` (no training, validation or evaluation pool uses that seed), each
+  aligned with the season by the day of the year of sowing.
+
+Every ``decision_every_days`` days (and on the sowing day) it re-plans: for each continuation, the oracle's
+search finds the best schedule of the rest of the season on the true weather so far followed by the
+continuation, with the applied days frozen (``FieldProblem.frozen_days``), warm-started from that
+continuation's previous plan (the first plan: the oracle's own starts). Until the next decision it applies,
+each day, the mean of the continuations' plans for that day: within the capacity, and within the quota left
+(each plan is), so the environment applies it unchanged. It ignores the noisy sensors and the forecast.
+
+What its figures mean: its return is achieved by a causal controller (the environment pays it, and a test
+checks that its actions do not depend on the weather after the day they are taken), so oracle - MPC regret
+is a measured **upper bound on the least regret a causal controller can reach**. It is not a lower bound:
+a better controller (more continuations, conditioning on the forecast, daily decisions) may do better.
+
+    python -m crop_agent_ros.policies.family_mpc --table results/family/benton-quota/table.json \\
+        --set heldout-real [--seasons 0..4] [--scenarios 8] [--decision-every-days 7] [--out FILE.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from crop_sim_ros.task.layout import EXTENDED
+
+from .base import BasePolicy, SeasonContext
+from .family_oracle import TaskConstants, field_problems, plan_fields
+
+POOL_SEED = 700_001
+WEATHER_SERIES = ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "et0_mm")
+DAY = EXTENDED.index("days_since_sowing")
+APPLIED_YESTERDAY = EXTENDED.index("irrigation_yesterday_mm")
+
+
+@dataclass(frozen=True)
+class MpcSettings:
+    """``scenarios``: weather continuations per decision; ``decision_every_days``: days between re-plans;
+    ``replan_first_step_mm`` / ``finest_step_mm``: the oracle search's first and finest step (mm) in a
+    re-plan (the first plan uses the oracle's defaults, from 16 mm)."""
+
+    scenarios: int = 8
+    decision_every_days: int = 7
+    replan_first_step_mm: float = 4.0
+    finest_step_mm: float = 0.25
+
+    def __post_init__(self) -> None:
+        if int(self.scenarios) < 1 or int(self.decision_every_days) < 1:
+            raise ValueError(f"family MPC: scenarios and decision_every_days must be >= 1, got {self.scenarios} "
+                             f"and {self.decision_every_days}")
+        if not 0 < self.finest_step_mm <= self.replan_first_step_mm:
+            raise ValueError(f"family MPC: need 0 < finest_step_mm <= replan_first_step_mm, got "
+                             f"{self.finest_step_mm} and {self.replan_first_step_mm}")
+
+
+def continuation_pool(generator_scenario, scenarios: int, seed: int = POOL_SEED) -> list[SeasonContext]:
+    """``scenarios`` generated seasons of ``generator_scenario``'s weather generator with ``seed``."""
+    from crop_agent_ros.learning.evaluate_task import reseeded
+    from .rollout import season_contexts
+    return season_contexts(reseeded(generator_scenario, seed, scenarios))
+
+
+def _day_of_year(context: SeasonContext) -> int:
+    return datetime.date.fromisoformat(context.extra["sowing_date"]).timetuple().tm_yday
+
+
+def spliced(truth: SeasonContext, continuation: SeasonContext, known_days: int) -> SeasonContext:
+    """``truth``'s weather on days 0..known_days-1, then ``continuation``'s on the same days of the year (its
+    last day repeated past its end), over ``truth``'s length: what the controller plans on."""
+    offset = _day_of_year(truth) - _day_of_year(continuation)
+    days = np.arange(len(truth.rain_mm))
+    source = np.clip(days + offset, 0, len(continuation.rain_mm) - 1)
+    series = {}
+    for name in WEATHER_SERIES:
+        known, guessed = np.asarray(getattr(truth, name), dtype=float), np.asarray(getattr(continuation, name))
+        series[name] = np.where(days < known_days, known, guessed[source])
+    return replace(truth, name=f"{truth.name}|{continuation.name}@{known_days}", **series)
+
+
+def _within_quota(schedule: np.ndarray, quota_mm: float) -> np.ndarray:
+    """``schedule`` with water taken off its last wet days until its total is within ``quota_mm``."""
+    out = schedule.copy()
+    for d in np.flatnonzero(out)[::-1]:
+        excess = out.sum() - quota_mm
+        if excess <= 0.0:
+            break
+        out[d] = max(out[d] - excess, 0.0)
+    return out
+
+
+class FamilyMpcPolicy(BasePolicy):
+    """The module docstring's controller. :meth:`begin_season` takes one :class:`SeasonContext` per field
+    with its episode terms (as :func:`crop_agent_ros.policies.rollout.run_episodes` gives them); the policy
+    reads a field's weather only up to the day it acts on (``days_since_sowing`` of the observation)."""
+
+    name = "family-mpc"
+    observation_sizes = (EXTENDED.size,)
+
+    def __init__(self, constants: TaskConstants, pool: list[SeasonContext], settings: MpcSettings = MpcSettings()):
+        if len(pool) < settings.scenarios:
+            raise ValueError(f"family MPC: {settings.scenarios} scenarios need as many pool seasons, got {len(pool)}")
+        self.constants = constants
+        self.pool = list(pool[:settings.scenarios])
+        self.settings = settings
+        self.contexts: list[SeasonContext] = []
+        self.decisions = 0
+        self.planning_cpu_s = 0.0
+
+    def begin_season(self, context) -> None:
+        self.contexts = list(context) if isinstance(context, (list, tuple)) else [context]
+        self.problems = field_problems(self.contexts, self.constants)
+        n, k = len(self.contexts), len(self.pool)
+        self.applied = [np.zeros(len(c.rain_mm)) for c in self.contexts]
+        self.plans = [[None] * k for _ in range(n)]
+        self.block = [np.zeros(len(c.rain_mm)) for c in self.contexts]
+        self.last_day = np.full(n, -1)
+        self.done = np.zeros(n, dtype=bool)
+
+    def _replan(self, fields: list[int], day: int) -> None:
+        began = time.process_time()
+        k = len(self.pool)
+        problems, starts = [], []
+        for i in fields:
+            truth = self.problems[i]
+            for j, continuation in enumerate(self.pool):
+                context = spliced(truth.context, continuation, day + 1)
+                problems.append(replace(truth, context=context, frozen_days=day))
+                if day > 0:
+                    start = np.concatenate([self.applied[i][:day], self.plans[i][j][day:]])
+                    starts.append(_within_quota(start, truth.quota_mm))
+        if day == 0:
+            results = plan_fields(problems, finest_step_mm=self.settings.finest_step_mm)
+        else:
+            results = plan_fields(problems, starts=[starts], first_step_mm=self.settings.replan_first_step_mm,
+                                  finest_step_mm=self.settings.finest_step_mm)
+        for slot, i in enumerate(fields):
+            mine = results[slot * k:(slot + 1) * k]
+            for j, result in enumerate(mine):
+                self.plans[i][j] = result.schedule_mm
+            self.block[i] = np.mean([r.schedule_mm for r in mine], axis=0)
+        self.decisions += 1
+        self.planning_cpu_s += time.process_time() - began
+
+    def _act_batch(self, obs):
+        if not self.contexts or len(self.contexts) != len(obs):
+            raise ValueError(f"family MPC: begin_season with one context per field first ({len(self.contexts)} "
+                             f"contexts for {len(obs)} observations)")
+        days = np.rint(obs[:, DAY]).astype(int)
+        self.done |= days < self.last_day  # a field that restarted (its episode ended) is not planned again
+        for i in np.flatnonzero(~self.done & (days > 0)):
+            self.applied[i][days[i] - 1] = obs[i, APPLIED_YESTERDAY]
+        self.last_day = np.where(self.done, self.last_day, days)
+        live = [i for i in np.flatnonzero(~self.done) if days[i] < len(self.applied[i])]
+        deciding = [i for i in live if days[i] % self.settings.decision_every_days == 0]
+        for day in sorted({int(days[i]) for i in deciding}):
+            self._replan([i for i in deciding if days[i] == day], day)
+        out = np.zeros(len(obs))
+        for i in live:
+            out[i] = self.block[i][days[i]]
+        return out
+
+    def describe(self):
+        return {"name": self.name, "scenarios": self.settings.scenarios,
+                "decision_every_days": self.settings.decision_every_days, "pool_seed": POOL_SEED}
+
+
+# --- command line: the MPC on an evaluated set, beside the oracle and the rule of that evaluation ------------
+
+def pool_generator_of(set_name: str) -> str:
+    """The weather generator whose climatology the MPC draws continuations from on an evaluation set: the
+    site's own (the held-out real seasons are Benton County's)."""
+    if set_name.startswith("far-"):
+        return set_name[len("far-"):]
+    if set_name.startswith("maricopa-"):
+        return "maricopa"
+    if set_name == "heldout-real":
+        return "benton"
+    raise ValueError(f"family MPC: no weather generator known for set {set_name!r}")
+
+
+def _bootstrap_mean(values: np.ndarray, rng: np.random.Generator, resamples: int) -> np.ndarray:
+    """(resamples, ...) means of ``values`` over seasons (axis 0) drawn with replacement."""
+    picks = rng.integers(0, len(values), size=(resamples, len(values)))
+    return values[picks].mean(axis=1)
+
+
+def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, settings: MpcSettings,
+                       resamples: int = 2000, log=print) -> dict:
+    """Run the MPC on ``set_name`` of an evaluation ``table`` (``crop-sim evaluate --task``'s table.json) with
+    that evaluation's terms, and compare it with the table's oracle and rule on the same seasons (USD/ha).
+    The rule's return per season is its mean over the table's noise seeds (the MPC reads no noisy value:
+    its return does not depend on the noise seed). Intervals: 95 % bootstrap over seasons, paired."""
+    from crop_sim_ros.task.scenario import get_scenario
+    from crop_agent_ros.learning.evaluate_task import RULE, evaluation_sets
+    from .rollout import run_episodes
+    arguments = table["arguments"]
+    task = get_scenario(table["task"])
+    entry = next((s for s in table["sets"] if s["name"] == set_name), None)
+    if entry is None:
+        raise ValueError(f"--set: {set_name!r} is not in the table (it has {', '.join(s['name'] for s in table['sets'])})")
+    evaluation_set = next(s for s in evaluation_sets(task, arguments["far_seasons"], arguments["far_seed"])
+                          if s.name == set_name)
+    index = np.arange(len(entry["seasons"])) if seasons is None else np.asarray(seasons)
+    if index.size == 0 or index.max() >= len(entry["seasons"]):
+        raise ValueError(f"--seasons: {set_name} has seasons 0..{len(entry['seasons']) - 1}")
+    terms = {name: np.asarray(values, dtype=float)[index] for name, values in entry["terms"].items()}
+    generator = pool_generator_of(set_name)
+    pool = continuation_pool(get_scenario(f"{generator}-generated", task.data_dir), settings.scenarios)
+    mpc = FamilyMpcPolicy(TaskConstants.of_scenario(evaluation_set.scenario), pool, settings)
+    began = time.perf_counter()
+    mpc_returns = run_episodes(mpc, evaluation_set.scenario, np.asarray(entry["seasons"])[index], seed=0,
+                               terms=terms).episode_return
+    wall_s = time.perf_counter() - began
+    oracle = np.asarray(entry["oracle_returns_usd_ha"], dtype=float)[index]
+    rule = np.asarray(entry["returns_usd_ha"][RULE], dtype=float)[0][index].mean(axis=-1)
+    regrets = np.stack([oracle - rule, oracle - mpc_returns], axis=1)  # (M, 2): rule, MPC
+    means = _bootstrap_mean(regrets, np.random.default_rng(0), resamples)
+    ratio = means[:, 1] / np.where(means[:, 0] > 0, means[:, 0], np.nan)
+    low, high = np.nanpercentile(ratio, [2.5, 97.5])
+    rows = [{"season": int(entry["seasons"][i]), "source": str(entry["season_sources"][i]) if "season_sources" in entry
+             else "", "oracle_usd_ha": float(o), "rule_regret_usd_ha": float(o - r), "mpc_regret_usd_ha": float(o - m)}
+            for i, o, r, m in zip(index, oracle, rule, mpc_returns)]
+    summary = {
+        "set": set_name, "task": task.name, "seasons": len(index), "oracle_usd_ha": float(oracle.mean()),
+        "rule_regret_usd_ha": float(regrets[:, 0].mean()),
+        "rule_regret_ci": [float(v) for v in np.percentile(means[:, 0], [2.5, 97.5])],
+        "mpc_regret_usd_ha": float(regrets[:, 1].mean()),
+        "mpc_regret_ci": [float(v) for v in np.percentile(means[:, 1], [2.5, 97.5])],
+        "mpc_over_rule": float(regrets[:, 1].mean() / regrets[:, 0].mean()), "mpc_over_rule_ci": [low, high],
+        "mpc_wins_over_rule": float(np.mean(regrets[:, 1] < regrets[:, 0])),
+        "settings": {**mpc.describe(), "replan_first_step_mm": settings.replan_first_step_mm,
+                     "finest_step_mm": settings.finest_step_mm, "pool_generator": generator},
+        "decisions": mpc.decisions, "planning_cpu_s": round(mpc.planning_cpu_s, 1), "wall_s": round(wall_s, 1),
+        "rows": rows}
+    log(f"{'season':>7} {'oracle':>9} {'rule regret':>12} {'MPC regret':>11}")
+    for row in rows:
+        log(f"{row['season']:>7} {row['oracle_usd_ha']:>9,.0f} {row['rule_regret_usd_ha']:>12,.0f} "
+            f"{row['mpc_regret_usd_ha']:>11,.0f}")
+    log(f"{set_name} ({len(index)} seasons, USD/ha): oracle {summary['oracle_usd_ha']:,.0f}; rule regret "
+        f"{summary['rule_regret_usd_ha']:,.0f} [{summary['rule_regret_ci'][0]:,.0f}, {summary['rule_regret_ci'][1]:,.0f}]; "
+        f"MPC regret {summary['mpc_regret_usd_ha']:,.0f} [{summary['mpc_regret_ci'][0]:,.0f}, "
+        f"{summary['mpc_regret_ci'][1]:,.0f}]; MPC / rule {summary['mpc_over_rule']:.2f} [{low:.2f}, {high:.2f}]; "
+        f"MPC better on {100 * summary['mpc_wins_over_rule']:.0f} % of seasons; {wall_s:.0f} s")
+    return summary
+
+
+def _season_indices(text: str | None):
+    if text is None:
+        return None
+    low, _, high = text.partition("..")
+    try:
+        indices = np.arange(int(low), int(high) + 1) if high else np.array([int(low)])
+    except ValueError:
+        raise ValueError(f"--seasons: expected 'A..B' or one index, got {text!r}") from None
+    if indices.size == 0 or indices.min() < 0:
+        raise ValueError(f"--seasons: {text!r} names no season (non-negative, A <= B)")
+    return indices
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m crop_agent_ros.policies.family_mpc",
+                                     description="the causal MPC on a set of an evaluation, beside its oracle and rule")
+    parser.add_argument("--table", required=True, help="table.json of `crop-sim evaluate --task T`")
+    parser.add_argument("--set", required=True, help="evaluation set name (e.g. heldout-real, far-benton)")
+    parser.add_argument("--seasons", help="positions in the set 'A..B' (default: all)")
+    parser.add_argument("--scenarios", type=int, default=MpcSettings.scenarios, help="continuations per decision")
+    parser.add_argument("--decision-every-days", type=int, default=MpcSettings.decision_every_days)
+    parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
+    args = parser.parse_args(argv)
+    try:
+        with open(args.table) as f:
+            table = json.load(f)
+        if not isinstance(table, dict) or "sets" not in table or "task" not in table:
+            raise ValueError(f"--table: {args.table} is not a table.json of `crop-sim evaluate --task`")
+        settings = MpcSettings(scenarios=args.scenarios, decision_every_days=args.decision_every_days)
+        summary = compare_with_table(table, args.set, _season_indices(args.seasons), settings)
+    except (OSError, ValueError, KeyError) as error:
+        print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
+        return 2
+    if args.out:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(json.dumps({"command": sys.argv, **summary}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

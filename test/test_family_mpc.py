@@ -1,0 +1,96 @@
+"""The task family's causal MPC (crop_agent_ros.policies.family_mpc) and the oracle's frozen days it re-plans
+with: frozen days are kept, the controller never reads the weather after the day it acts on, nor a noisy
+value, its schedules are feasible, and bad input is refused with one line. Small budgets (2 continuations,
+a coarse search): the file runs in about a minute."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from crop_agent_ros.policies import family_mpc as fm, family_oracle as fo
+from crop_agent_ros.policies.rollout import contexts_with_terms, run_episodes, season_contexts
+from crop_sim_ros.task import get_scenario
+
+CHEAP = fm.MpcSettings(scenarios=2, decision_every_days=14, replan_first_step_mm=2.0, finest_step_mm=1.0)
+TERMS = {"yield_value_per_t": np.array([1100.0]), "water_cost_per_mm": np.array([1.5]),
+         "quota_mm": np.array([250.0])}
+
+
+@pytest.fixture(scope="module")
+def quota_task():
+    scenario = get_scenario("benton-quota")
+    return scenario, season_contexts(scenario), fm.continuation_pool(get_scenario("benton-generated"), 2)
+
+
+def test_a_replan_keeps_the_frozen_days_and_named_starts_are_refused(quota_task):
+    scenario, contexts, _ = quota_task
+    problem = fo.field_problems(contexts_with_terms([contexts[0]], TERMS), fo.TaskConstants.of_scenario(scenario))[0]
+    start = np.zeros(problem.days)
+    start[20:40] = 3.0  # 60 mm on days 20-39: a plan the search would change
+    frozen = replace(problem, frozen_days=30)
+    result = fo.plan_fields([frozen], starts=[[start]], first_step_mm=2.0, finest_step_mm=1.0)[0]
+    np.testing.assert_array_equal(result.schedule_mm[:30], start[:30])
+    assert not np.array_equal(result.schedule_mm[30:], start[30:])  # the free days were searched
+    assert result.schedule_mm.sum() <= 250.0
+    with pytest.raises(ValueError, match="frozen days need given start schedules"):
+        fo.plan_fields([frozen], starts=("family",))
+    with pytest.raises(ValueError, match="frozen_days .* must be in"):
+        replace(problem, frozen_days=problem.days + 1)
+
+
+def test_the_continuation_is_aligned_by_the_day_of_the_year(quota_task):
+    _, contexts, pool = quota_task
+    truth = replace(contexts[0], extra={**contexts[0].extra, "sowing_date": "2000-04-10"})  # day 101 of 2000
+    guess = replace(pool[0], extra={**pool[0].extra, "sowing_date": "2001-04-05"})         # day 95 of 2001
+    out = fm.spliced(truth, guess, known_days=50)
+    np.testing.assert_array_equal(out.rain_mm[:50], truth.rain_mm[:50])
+    np.testing.assert_array_equal(out.et0_mm[50:60], guess.et0_mm[56:66])  # 6 days of the year later
+    np.testing.assert_array_equal(out.tmax_degc[-1], guess.tmax_degc[-1])  # past its end: its last day
+    assert len(out.rain_mm) == len(truth.rain_mm)
+
+
+def _daily_irrigation(scenario, contexts, pool, seed, seasons=(0,)):
+    policy = fm.FamilyMpcPolicy(fo.TaskConstants.of_scenario(scenario), pool, CHEAP)
+    episodes = run_episodes(policy, scenario, np.array(seasons), seed=seed, contexts=contexts, terms=TERMS,
+                            record=True)
+    return episodes, episodes.daily["irrigation_mm"][:int(episodes.days[0]), 0]
+
+
+def test_the_mpc_acts_without_the_future_weather_and_without_noisy_values(quota_task):
+    scenario, contexts, pool = quota_task
+    episodes, applied = _daily_irrigation(scenario, contexts, pool, seed=0)
+    # the same season with other weather from day 29 on in what the policy is given: the days before are the
+    # same, the later ones are not (the policy does read the given weather, up to the day it acts on)
+    other = contexts[3]
+    changed = replace(contexts[0], **{name: np.concatenate([getattr(contexts[0], name)[:29],
+                                                           getattr(other, name)[29:len(contexts[0].rain_mm)]])
+                                      for name in fm.WEATHER_SERIES})
+    _, applied_changed = _daily_irrigation(scenario, [changed] + contexts[1:], pool, seed=0)
+    np.testing.assert_array_equal(applied_changed[:29], applied[:29])
+    assert not np.array_equal(applied_changed[29:], applied[29:len(applied_changed)])
+    # another noise seed (observation and forecast noise): the same schedule
+    _, applied_noise = _daily_irrigation(scenario, contexts, pool, seed=3)
+    np.testing.assert_array_equal(applied_noise, applied)
+    # feasible, as the oracle would see it: within the pivot and the quota, and no better than hindsight
+    assert applied.max() <= 8.0 and applied.sum() <= 250.0 + 1e-9 and applied.sum() > 100.0
+    problem = fo.field_problems(contexts_with_terms([contexts[0]], TERMS), fo.TaskConstants.of_scenario(scenario))
+    oracle = fo.plan_fields(problem)[0]
+    assert episodes.episode_return[0] <= oracle.return_value + 1e-6
+
+
+def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
+    assert fm.main(["--table", str(tmp_path / "missing.json"), "--set", "heldout-real"]) == 2
+    assert "missing.json" in capsys.readouterr().err
+    table = tmp_path / "table.json"
+    table.write_text(json.dumps({"task": "benton-quota", "sets": [{"name": "heldout-real"}],
+                                 "arguments": {"far_seasons": 5, "far_seed": 900_001}}))
+    assert fm.main(["--table", str(table), "--set", "far-nowhere"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "'far-nowhere' is not in the table" in err
+    assert fm.main(["--table", str(table), "--set", "heldout-real", "--scenarios", "0"]) == 2
+    assert "scenarios" in capsys.readouterr().err
+    (tmp_path / "list.json").write_text("[1, 2]")
+    assert fm.main(["--table", str(tmp_path / "list.json"), "--set", "heldout-real"]) == 2
+    assert "is not a table.json" in capsys.readouterr().err
