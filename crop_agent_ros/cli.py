@@ -27,6 +27,8 @@ COMMANDS = {
     "evaluate": ("crop_agent_ros.evaluate", "evaluate policies on held-out seasons"),
     "tune-rule": ("crop_agent_ros.policies.family_tuning",
                   "tune a family task's water-budget rule on generated training seasons"),
+    "demonstrate": ("crop_agent_ros.learning.imitation",
+                    "record the causal MPC's irrigation on a family task's training seasons (for --imitate)"),
     "sweep": ("crop_agent_ros.scale.sweep", "training and evaluation sweeps on Ray Tune (local or a cluster)"),
     "sweep-bench": ("crop_agent_ros.scale.bench", "benchmark sweep trials per hour with 1 and with 2 CPUs"),
     "ros-bench": ("crop_agent_ros.ros_bench", "benchmark days per second through ROS 2 against bare rclpy"),

@@ -42,6 +42,10 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--action", default="mm", choices=ACTION_KINDS,
                         help="with --task: mm (the headline agent: a in [-1, 1] -> 0..25 mm) or residual (a variant: "
                              f"the tuned rule's mm + a x {RESIDUAL_SPAN_MM:g} mm, clipped to 0..25 mm)")
+    parser.add_argument("--imitate", nargs="+", default=None, metavar="GLOB",
+                        help="with --task: first fit the policy to these demonstrations of the causal MPC "
+                             "(`crop-sim demonstrate`; behaviour cloning), then PPO on the reward (a variant)")
+    parser.add_argument("--imitation-epochs", type=int, default=100, help="epochs of behaviour cloning")
 
 
 def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
@@ -179,6 +183,14 @@ def train_task(args) -> dict:
         with torch.no_grad():
             model.policy.action_net.weight.zero_()
             model.policy.action_net.bias.zero_()
+    imitation = None
+    if getattr(args, "imitate", None):
+        from .imitation import clone, load_demonstrations
+        if not 1 <= args.imitation_epochs <= 100_000:
+            from crop_sim_ros.usage import UsageError
+            raise UsageError(f"--imitation-epochs {args.imitation_epochs}: must be in 1..100,000")
+        imitation = clone(model, interface, load_demonstrations(args.imitate, scenario.name), args.imitation_epochs,
+                          args.seed)
     validation = validation_scenario(scenario, args.validation_seasons, args.seed)
     seasons = np.arange(args.validation_seasons)
     terms = draw_terms(validation, seasons, 1234)
@@ -193,6 +205,7 @@ def train_task(args) -> dict:
                          f"a in [-1, 1] -> clip(the rule's mm + a x {RESIDUAL_SPAN_MM:g} mm, 0, {ACTION_SCALE_MM:g} mm); "
                          f"the network also sees the rule's mm / {RESIDUAL_SPAN_MM:g}"),
               **({} if rule is None else {"rule": {**rule_record(rule), "file": rule_file(scenario.name).name}}),
+              **({} if imitation is None else {"imitation": imitation}),
               "scaler": {"mean": list(scaler.mean), "std": list(scaler.std)},
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",
               "hyper_parameters": {k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "n_steps",

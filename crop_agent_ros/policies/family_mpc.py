@@ -44,7 +44,7 @@ import numpy as np
 from crop_sim_ros.task.layout import EXTENDED
 
 from .base import BasePolicy, SeasonContext
-from .family_oracle import TaskConstants, field_problems, plan_fields
+from .family_oracle import TaskConstants, field_problems, plan_fields, season_range
 
 POOL_SEED = 700_001
 WEATHER_SERIES = ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "et0_mm")
@@ -173,6 +173,8 @@ class FamilyMpcPolicy(BasePolicy):
         deciding = [i for i in live if days[i] % self.settings.decision_every_days == 0]
         for day in sorted({int(days[i]) for i in deciding}):
             self._replan([i for i in deciding if days[i] == day], day)
+        self.live = np.zeros(len(obs), dtype=bool)
+        self.live[live] = True
         out = np.zeros(len(obs))
         for i in live:
             out[i] = self.block[i][days[i]]
@@ -263,19 +265,6 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     return summary
 
 
-def _season_indices(text: str | None):
-    if text is None:
-        return None
-    low, _, high = text.partition("..")
-    try:
-        indices = np.arange(int(low), int(high) + 1) if high else np.array([int(low)])
-    except ValueError:
-        raise ValueError(f"--seasons: expected 'A..B' or one index, got {text!r}") from None
-    if indices.size == 0 or indices.min() < 0:
-        raise ValueError(f"--seasons: {text!r} names no season (non-negative, A <= B)")
-    return indices
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m crop_agent_ros.policies.family_mpc",
                                      description="the causal MPC on a set of an evaluation, beside its oracle and rule")
@@ -292,7 +281,8 @@ def main(argv=None) -> int:
         if not isinstance(table, dict) or "sets" not in table or "task" not in table:
             raise ValueError(f"--table: {args.table} is not a table.json of `crop-sim evaluate --task`")
         settings = MpcSettings(scenarios=args.scenarios, decision_every_days=args.decision_every_days)
-        summary = compare_with_table(table, args.set, _season_indices(args.seasons), settings)
+        seasons = None if args.seasons is None else season_range(args.seasons)
+        summary = compare_with_table(table, args.set, seasons, settings)
     except (OSError, ValueError, KeyError) as error:
         print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
         return 2

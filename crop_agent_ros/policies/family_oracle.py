@@ -779,7 +779,7 @@ def report(problems: list[FieldProblem], bound_step_mm: float = 0.25, log=print)
     return rows
 
 
-def _season_range(text: str) -> np.ndarray:
+def season_range(text: str) -> np.ndarray:
     low, _, high = text.partition("..")
     try:
         indices = np.arange(int(low), int(high) + 1) if high else np.array([int(low)])
@@ -800,7 +800,7 @@ def main(argv=None) -> int:
                         help="water grid of the upper bound, mm (0: no bound; default 0.25)")
     args = parser.parse_args(argv)
     try:
-        seasons = _season_range(args.seasons)
+        seasons = season_range(args.seasons)
         if not (args.bound_step_mm >= 0.0):
             raise ValueError(f"--bound-step-mm: expected a number >= 0, got {args.bound_step_mm}")
         scenario = scenario_of(args.task)

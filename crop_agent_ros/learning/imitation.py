@@ -1,0 +1,204 @@
+"""Learning from the causal MPC: its demonstrations, and behaviour cloning of a family agent's network.
+
+The causal MPC (:mod:`crop_agent_ros.policies.family_mpc`) irrigates better than the tuned rules, but it
+plans with SIMPLE on every decision (seconds of CPU per field and decision). A network that imitates it acts
+in microseconds and reads only the observation. This is the **imitation variant** of the family agents (not
+the headline agent, which learns from the reward alone): ``crop-sim demonstrate`` records the MPC's actions on
+generated training seasons, and ``crop-sim train --task T --imitate FILES`` fits the PPO network's policy to
+them before (optional) PPO fine-tuning on the reward.
+
+    crop-sim demonstrate --task benton-quota --seasons 0..99 [--scenarios 6] [--decision-every-days 7]
+        [--action-noise-mm 1.0] [--seed 0] --out demos/benton-quota-0.npz
+
+Demonstrations: the MPC runs on training seasons of the task's own pool (generated weather, the seasons the
+agents train on; never a validation or evaluation season) with the task's terms drawn per season by the
+environment (``--seed``). To show the network states off the MPC's own path (Laskey et al. 2017, DART), the
+executed amount on days the MPC irrigates is its amount plus Gaussian noise of ``--action-noise-mm`` (cut at
+0); the label is always the MPC's own amount for the state reached. A file holds the observations (S, 29)
+and labels (S,) mm of every live field-day, the season and day of each, and how they were made.
+
+Behaviour cloning (:func:`clone`): the actor's mean action a (the network's input as the agent sees it, the
+normalised observation) is fitted to a* = mm / 12.5 - 1 (the agent's a in [-1, 1] -> (a + 1) / 2 x 25 mm) by
+squared error, one-sided where a* sits on a bound (a* = -1, no water: any a <= -1 is exact, since the action
+is clipped there). A tenth of the seasons is held out of the fit to report its error (mean absolute, mm).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from crop_sim_ros.usage import UsageError, user_input
+
+from .agent import ACTION_SCALE_MM
+
+FORMAT = "crop-sim demonstrations 1"
+
+
+class _Recorder:
+    """Wraps the MPC in :func:`crop_agent_ros.policies.rollout.run_episodes`: records (observation, the MPC's
+    mm) of every live field and returns the MPC's mm with noise on wet days."""
+
+    def __init__(self, mpc, noise_mm: float, seed: int):
+        self.mpc = mpc
+        self.name = "mpc-recorder"
+        self.noise_mm = noise_mm
+        self.rng = np.random.default_rng(seed)
+        self.observations, self.labels, self.fields = [], [], []
+
+    def reset(self, seed=None):
+        self.mpc.reset(seed)
+
+    def begin_season(self, contexts):
+        self.mpc.begin_season(contexts)
+
+    def act(self, obs):
+        label = np.asarray(self.mpc.act(obs), dtype=float)
+        live = self.mpc.live
+        self.observations.append(obs[live].astype(np.float32))
+        self.labels.append(label[live])
+        self.fields.append(np.flatnonzero(live))
+        noise = self.rng.normal(0.0, self.noise_mm, len(label)) if self.noise_mm > 0 else 0.0
+        return np.where(label > 0.0, np.maximum(label + noise, 0.0), 0.0)
+
+
+def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: float, seed: int) -> dict:
+    """The MPC's demonstrations on ``seasons`` of ``task_name``'s training pool (see the module docstring)."""
+    from crop_sim_ros.task.layout import EXTENDED
+    from crop_sim_ros.task.scenario import get_scenario
+    from ..policies.family_mpc import FamilyMpcPolicy, continuation_pool
+    from ..policies.family_oracle import TaskConstants
+    from ..policies.rollout import run_episodes
+    scenario = get_scenario(task_name)
+    if not scenario.is_family_task or scenario.weather.kind != "generator":
+        raise UsageError(f"--task: demonstrations need a family task trained on one weather generator; "
+                         f"{task_name!r} is {'not a family task' if not scenario.is_family_task else 'a mixture'}")
+    if seasons.max() >= scenario.weather.n_seasons:
+        raise UsageError(f"--seasons: {task_name} trains on seasons 0..{scenario.weather.n_seasons - 1}")
+    pool = continuation_pool(scenario, settings.scenarios)
+    mpc = FamilyMpcPolicy(TaskConstants.of_scenario(scenario), pool, settings)
+    recorder = _Recorder(mpc, action_noise_mm, seed)
+    began = time.perf_counter()
+    episodes = run_episodes(recorder, scenario, seasons, seed=seed)
+    day = EXTENDED.index("days_since_sowing")
+    observations = np.concatenate(recorder.observations)
+    return {"format": FORMAT, "task": task_name, "observations": observations,
+            "mm": np.concatenate(recorder.labels), "season": seasons[np.concatenate(recorder.fields)],
+            "day": np.rint(observations[:, day]).astype(np.int64), "episode_return_usd_ha": episodes.episode_return,
+            "settings": json.dumps({**mpc.describe(), "replan_first_step_mm": settings.replan_first_step_mm,
+                                    "finest_step_mm": settings.finest_step_mm, "action_noise_mm": action_noise_mm,
+                                    "seed": seed, "seasons": [int(seasons.min()), int(seasons.max())],
+                                    "wall_s": round(time.perf_counter() - began, 1)})}
+
+
+def load_demonstrations(patterns: list[str], task_name: str) -> dict:
+    """The demonstration files matching ``patterns`` (globs), concatenated; each must be of ``task_name``."""
+    import glob
+    paths = sorted({p for pattern in patterns for p in glob.glob(pattern)})
+    if not paths:
+        raise UsageError(f"--imitate: no demonstration file matches {' '.join(patterns)}")
+    parts = []
+    for path in paths:
+        with user_input(f"--imitate {path}", (OSError, ValueError, KeyError)):
+            with np.load(path) as data:
+                if str(data["format"]) != FORMAT:
+                    raise ValueError(f"not a demonstrations file ({FORMAT!r})")
+                if str(data["task"]) != task_name:
+                    raise ValueError(f"demonstrations of {str(data['task'])!r}, not of {task_name!r}")
+                part = {k: data[k] for k in ("observations", "mm", "season", "day")}
+        if not (np.all(np.isfinite(part["observations"])) and np.all(np.isfinite(part["mm"]))
+                and np.all(part["mm"] >= 0.0)):
+            raise UsageError(f"--imitate {path}: observations and mm must be finite, mm >= 0")
+        parts.append(part)
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} | {"files": paths}
+
+
+def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learning_rate: float = 1e-3,
+          batch_size: int = 256, log=print) -> dict:
+    """Fit ``model``'s actor mean (an SB3 PPO ``MlpPolicy``) to the demonstrations (module docstring); the
+    critic and the log-std are left as they are. Returns the fit's error on held-out seasons (mm)."""
+    import torch
+    if interface.history.k != 1 or interface.action_kind != "mm":
+        raise UsageError("--imitate: behaviour cloning fits the mm action from one observation (--history 1, "
+                         "--action mm)")
+    inputs = interface.scaler(demonstrations["observations"].astype(float)).astype(np.float32)
+    target = np.clip(demonstrations["mm"] / (ACTION_SCALE_MM / 2.0) - 1.0, -1.0, 1.0).astype(np.float32)
+    seasons = np.unique(demonstrations["season"])
+    rng = np.random.default_rng(seed)
+    held = rng.choice(seasons, size=len(seasons) // 10, replace=False)
+    test = np.isin(demonstrations["season"], held)
+    checked = test if held.size else ~test  # fewer than 10 seasons: none held out, the error is the fit's
+    policy = model.policy
+    actor = list(policy.mlp_extractor.policy_net.parameters()) + list(policy.action_net.parameters())
+    optimiser = torch.optim.Adam(actor, lr=learning_rate)
+    x_fit, y_fit = torch.as_tensor(inputs[~test]), torch.as_tensor(target[~test])
+    x_test, y_test = torch.as_tensor(inputs[checked]), torch.as_tensor(target[checked])
+    generator = torch.Generator().manual_seed(seed)
+
+    def mean_action(x):
+        return policy.action_net(policy.mlp_extractor.forward_actor(policy.extract_features(x))).squeeze(-1)
+
+    def loss_of(a, y):
+        error = torch.where(y <= -1.0, torch.relu(a - y), torch.where(y >= 1.0, torch.relu(y - a), a - y))
+        return (error ** 2).mean()
+
+    def test_error_mm():
+        with torch.no_grad():
+            a = torch.clamp(mean_action(x_test), -1.0, 1.0)
+        return float(torch.mean(torch.abs(a - y_test))) * ACTION_SCALE_MM / 2.0
+
+    error_on = "held-out seasons'" if held.size else "training samples' (fewer than 10 seasons: none held out)"
+    began = time.perf_counter()
+    before = test_error_mm()
+    for epoch in range(epochs):
+        order = torch.randperm(len(x_fit), generator=generator)
+        for first in range(0, len(order), batch_size):
+            batch = order[first:first + batch_size]
+            loss = loss_of(mean_action(x_fit[batch]), y_fit[batch])
+            optimiser.zero_grad()
+            loss.backward()
+            optimiser.step()
+        if (epoch + 1) % max(1, epochs // 5) == 0:
+            log(f"behaviour cloning: epoch {epoch + 1}/{epochs}, {error_on} mean abs error {test_error_mm():.2f} mm",
+                file=sys.stderr)
+    return {"files": [str(p) for p in demonstrations["files"]], "samples": int(len(x_fit)),
+            "held_out_samples": int(test.sum()), "held_out_seasons": sorted(int(s) for s in held),
+            "epochs": epochs, "learning_rate": learning_rate, "batch_size": batch_size,
+            "error_on": error_on, "abs_error_mm_before": round(before, 3), "abs_error_mm": round(test_error_mm(), 3),
+            "wall_s": round(time.perf_counter() - began, 1)}
+
+
+# --- crop-sim demonstrate ----------------------------------------------------------------------------------
+
+def add_arguments(parser) -> None:
+    from ..policies.family_mpc import MpcSettings
+    parser.add_argument("--task", required=True, help="a family task on one weather generator (e.g. benton-quota)")
+    parser.add_argument("--seasons", required=True, help="training-pool seasons 'A..B'")
+    parser.add_argument("--scenarios", type=int, default=6, help="MPC: weather continuations per decision")
+    parser.add_argument("--decision-every-days", type=int, default=MpcSettings.decision_every_days)
+    parser.add_argument("--action-noise-mm", type=float, default=1.0,
+                        help="std of the noise added to the executed amount on wet days (mm)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the terms, the noise and the sensor noise")
+    parser.add_argument("--out", required=True, help="demonstrations file (.npz)")
+
+
+def run(args) -> int:
+    from ..policies.family_mpc import MpcSettings
+    from ..policies.family_oracle import season_range
+    with user_input("--seasons", (ValueError,)):
+        seasons = season_range(args.seasons)
+    if not (np.isfinite(args.action_noise_mm) and args.action_noise_mm >= 0):
+        raise UsageError(f"--action-noise-mm: expected a number >= 0, got {args.action_noise_mm}")
+    with user_input("--scenarios / --decision-every-days", (ValueError,)):
+        settings = MpcSettings(scenarios=args.scenarios, decision_every_days=args.decision_every_days)
+    data = demonstrate(args.task, seasons, settings, args.action_noise_mm, args.seed)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(out, **data)
+    print(f"{len(data['mm'])} field-days of {len(seasons)} seasons -> {out}; MPC return "
+          f"{data['episode_return_usd_ha'].mean():,.0f} USD/ha (with its noise); {json.loads(data['settings'])['wall_s']} s")
+    return 0

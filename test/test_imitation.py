@@ -1,0 +1,126 @@
+"""Learning from the causal MPC (crop_agent_ros.learning.imitation): demonstrations record the MPC's own
+actions, the recorder perturbs only what is executed, behaviour cloning fits the actor (one-sided at the
+0 mm bound), bad files are refused with one line, and `crop-sim train --imitate` writes a policy that acts
+like its demonstrations. Tiny budgets only."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from crop_agent_ros.learning import imitation
+from crop_agent_ros.learning.agent import AgentInterface, LearnedPolicy, ObservationScaler
+from crop_agent_ros.policies import family_mpc as fm
+from crop_agent_ros.policies.family_oracle import TaskConstants
+from crop_agent_ros.policies.rollout import run_episodes
+from crop_sim_ros.task import IrrigationVectorEnv, get_scenario
+from crop_sim_ros.task.layout import EXTENDED
+from crop_sim_ros.usage import UsageError
+
+DAY = EXTENDED.index("days_since_sowing")
+CHEAP = fm.MpcSettings(scenarios=1, decision_every_days=30, replan_first_step_mm=2.0, finest_step_mm=1.0)
+
+
+@pytest.fixture(scope="module")
+def demonstrations():
+    return imitation.demonstrate("benton-quota", np.array([5]), CHEAP, action_noise_mm=0.0, seed=2)
+
+
+def test_demonstrations_are_the_mpcs_own_actions_on_live_days(demonstrations):
+    scenario = get_scenario("benton-quota")
+    mpc = fm.FamilyMpcPolicy(TaskConstants.of_scenario(scenario), fm.continuation_pool(scenario, 1), CHEAP)
+    episodes = run_episodes(mpc, scenario, np.array([5]), seed=2, record=True)
+    days = int(episodes.days[0])
+    np.testing.assert_array_equal(demonstrations["day"], np.arange(days))
+    np.testing.assert_array_equal(demonstrations["mm"], episodes.daily["irrigation_mm"][:days, 0])
+    assert demonstrations["observations"].shape == (days, EXTENDED.size)
+    assert np.all(demonstrations["season"] == 5) and demonstrations["mm"].sum() > 50.0
+
+
+def test_the_recorder_perturbs_what_is_executed_not_the_label():
+    class FakeMpc:
+        live = np.array([True, True, False])
+
+        def act(self, obs):
+            return np.array([0.0, 5.0, 3.0])
+
+    recorder = imitation._Recorder(FakeMpc(), noise_mm=1.0, seed=0)
+    obs = np.arange(3 * EXTENDED.size, dtype=float).reshape(3, EXTENDED.size)
+    executed = recorder.act(obs)
+    assert executed[0] == 0.0 and executed[1] != 5.0 and executed[1] >= 0.0 and abs(executed[1] - 5.0) < 5.0
+    np.testing.assert_array_equal(recorder.labels[0], [0.0, 5.0])
+    np.testing.assert_array_equal(recorder.observations[0], obs[:2])
+
+
+def _observations(seasons: int = 24) -> np.ndarray:
+    env = IrrigationVectorEnv(seasons, get_scenario("benton-quota"))
+    obs, _ = env.reset(seed=0)
+    seen = [obs]
+    for _ in range(100):
+        obs, *_ = env.step(np.full(seasons, 3.0))
+        seen.append(obs)
+    return np.concatenate(seen)
+
+
+def test_cloning_fits_the_actor_and_reaches_the_zero_bound_one_sidedly():
+    from stable_baselines3 import PPO
+
+    class Spaces(gym.Env):
+        observation_space = gym.spaces.Box(-10.0, 10.0, (EXTENDED.size,), np.float32)
+        action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+
+    obs = _observations()
+    day = obs[:, DAY]
+    mm = np.clip(0.3 * (day - 40.0), 0.0, 20.0)  # nothing before day 40, then a ramp to 20 mm
+    data = {"observations": obs, "mm": mm, "season": np.tile(np.arange(24), len(obs) // 24), "day": day,
+            "files": ["synthetic"]}
+    interface = AgentInterface(ObservationScaler.fit(obs), 1, "mm")
+    model = PPO("MlpPolicy", Spaces(), policy_kwargs={"net_arch": [32, 32]}, seed=0, device="cpu")
+    report = imitation.clone(model, interface, data, epochs=60, seed=0, log=lambda *a, **k: None)
+    assert report["error_on"].startswith("held-out") and report["held_out_samples"] > 0
+    assert report["abs_error_mm"] < 0.25 * report["abs_error_mm_before"]
+    assert report["abs_error_mm"] < 1.5
+    action, _ = model.predict(interface.scaler(obs[day < 30]).astype(np.float32), deterministic=True)
+    assert np.mean((action + 1.0) / 2.0 * 25.0) < 0.5  # the 0 mm days: the clipped action is at the bound
+    with pytest.raises(UsageError, match="--history 1"):
+        imitation.clone(model, AgentInterface(interface.scaler, 2, "mm"), data, epochs=1, seed=0)
+
+
+def test_bad_demonstration_files_are_refused(tmp_path, demonstrations):
+    good = tmp_path / "good.npz"
+    np.savez_compressed(good, **demonstrations)
+    loaded = imitation.load_demonstrations([str(tmp_path / "*.npz")], "benton-quota")
+    assert len(loaded["mm"]) == len(demonstrations["mm"]) and loaded["files"] == [str(good)]
+    with pytest.raises(UsageError, match="demonstrations of 'benton-quota', not of 'benton-sensing'"):
+        imitation.load_demonstrations([str(good)], "benton-sensing")
+    with pytest.raises(UsageError, match="no demonstration file matches"):
+        imitation.load_demonstrations([str(tmp_path / "none-*.npz")], "benton-quota")
+    np.savez_compressed(tmp_path / "bad.npz", **{**demonstrations, "mm": -demonstrations["mm"] - 1.0})
+    with pytest.raises(UsageError, match="mm >= 0"):
+        imitation.load_demonstrations([str(tmp_path / "bad.npz")], "benton-quota")
+    (tmp_path / "junk.npz").write_text("not a zip")
+    with pytest.raises(UsageError, match="junk.npz"):
+        imitation.load_demonstrations([str(tmp_path / "junk.npz")], "benton-quota")
+
+
+def test_train_imitate_writes_a_policy_that_acts_like_its_demonstrations(tmp_path, demonstrations):
+    from crop_agent_ros import train
+    from crop_agent_ros.learning.train_task import train_task
+    np.savez_compressed(tmp_path / "demo.npz", **demonstrations)
+    parser = argparse.ArgumentParser()
+    train.add_arguments(parser)
+    out = tmp_path / "run"
+    args = parser.parse_args(["--task", "benton-quota", "--seed", "1", "--timesteps", "256", "--n-envs", "4",
+                              "--n-steps", "64", "--batch-size", "64", "--n-epochs", "1", "--eval-freq", "100000",
+                              "--validation-seasons", "2", "--net-arch", "32,32", "--no-progress", "--out", str(out),
+                              "--imitate", str(tmp_path / "demo.npz"), "--imitation-epochs", "200"])
+    summary = train_task(args)
+    assert summary["imitation"]["samples"] + summary["imitation"]["held_out_samples"] == len(demonstrations["mm"])
+    first = LearnedPolicy(sorted(out.glob("checkpoint_*.zip"))[0])  # after cloning, before any PPO update
+    assert json.loads(first.path.with_suffix(".json").read_text())["imitation"]["epochs"] == 200
+    error = np.abs(first.act(demonstrations["observations"].astype(float)) - demonstrations["mm"])
+    assert error.mean() < 1.0, error.mean()  # one season's 140 days, fitted 200 epochs: memorised
