@@ -11,6 +11,7 @@ import pytest
 
 from crop_agent_ros.learning.agent import ACTION_SCALE_MM, History, LearnedPolicy, ObservationScaler, action_to_mm
 from crop_sim_ros.task.layout import EXTENDED
+from policy_files import tiny_task_training
 
 
 def test_action_maps_minus_one_to_zero_and_one_to_the_scale():
@@ -41,16 +42,8 @@ def test_history_shifts_and_restarts_a_new_season():
 
 
 def _train(tmp_path, *extra: str):
-    from crop_agent_ros import train
-    from crop_agent_ros.learning.train_task import train_task
-    parser = argparse.ArgumentParser()
-    train.add_arguments(parser)
     out = tmp_path / "run"
-    args = parser.parse_args(["--task", "benton-sensing", "--seed", "3", "--timesteps", "512", "--n-envs", "4",
-                              "--n-steps", "64", "--batch-size", "64", "--n-epochs", "1", "--eval-freq", "100000",
-                              "--validation-seasons", "2", "--net-arch", "8", "--no-progress", "--out", str(out),
-                              *extra])
-    return train_task(args), out
+    return tiny_task_training(out, "benton-sensing", 3, *extra), out
 
 
 @pytest.mark.parametrize("extra, algorithm, history", [(("--history", "4"), "ppo", 4),

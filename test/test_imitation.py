@@ -5,10 +5,8 @@ like its demonstrations. Tiny budgets only."""
 
 from __future__ import annotations
 
-import argparse
 import json
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -20,6 +18,7 @@ from crop_agent_ros.policies.rollout import run_episodes
 from crop_sim_ros.task import IrrigationVectorEnv, get_scenario
 from crop_sim_ros.task.layout import EXTENDED
 from crop_sim_ros.usage import UsageError
+from policy_files import Spaces, tiny_task_training
 
 DAY = EXTENDED.index("days_since_sowing")
 CHEAP = fm.MpcSettings(scenarios=1, decision_every_days=30, replan_first_step_mm=2.0, finest_step_mm=1.0)
@@ -69,17 +68,13 @@ def _observations(seasons: int = 24) -> np.ndarray:
 def test_cloning_fits_the_actor_and_reaches_the_zero_bound_one_sidedly():
     from stable_baselines3 import PPO
 
-    class Spaces(gym.Env):
-        observation_space = gym.spaces.Box(-10.0, 10.0, (EXTENDED.size,), np.float32)
-        action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
-
     obs = _observations()
     day = obs[:, DAY]
     mm = np.clip(0.3 * (day - 40.0), 0.0, 20.0)  # nothing before day 40, then a ramp to 20 mm
     data = {"observations": obs, "mm": mm, "season": np.tile(np.arange(24), len(obs) // 24), "day": day,
             "files": ["synthetic"]}
     interface = AgentInterface(ObservationScaler.fit(obs), 1, "mm")
-    model = PPO("MlpPolicy", Spaces(), policy_kwargs={"net_arch": [32, 32]}, seed=0, device="cpu")
+    model = PPO("MlpPolicy", Spaces((EXTENDED.size,), (1,)), policy_kwargs={"net_arch": [32, 32]}, seed=0, device="cpu")
     report = imitation.clone(model, interface, data, epochs=60, seed=0, log=lambda *a, **k: None)
     assert report["error_on"].startswith("held-out") and report["held_out_samples"] > 0
     assert report["abs_error_mm"] < 0.25 * report["abs_error_mm_before"]
@@ -108,17 +103,10 @@ def test_bad_demonstration_files_are_refused(tmp_path, demonstrations):
 
 
 def test_train_imitate_writes_a_policy_that_acts_like_its_demonstrations(tmp_path, demonstrations):
-    from crop_agent_ros import train
-    from crop_agent_ros.learning.train_task import train_task
     np.savez_compressed(tmp_path / "demo.npz", **demonstrations)
-    parser = argparse.ArgumentParser()
-    train.add_arguments(parser)
     out = tmp_path / "run"
-    args = parser.parse_args(["--task", "benton-quota", "--seed", "1", "--timesteps", "256", "--n-envs", "4",
-                              "--n-steps", "64", "--batch-size", "64", "--n-epochs", "1", "--eval-freq", "100000",
-                              "--validation-seasons", "2", "--net-arch", "32,32", "--no-progress", "--out", str(out),
-                              "--imitate", str(tmp_path / "demo.npz"), "--imitation-epochs", "200"])
-    summary = train_task(args)
+    summary = tiny_task_training(out, "benton-quota", 1, "--imitate", str(tmp_path / "demo.npz"),
+                                 "--imitation-epochs", "200", timesteps=256, net_arch="32,32")
     assert summary["imitation"]["samples"] + summary["imitation"]["held_out_samples"] == len(demonstrations["mm"])
     first = LearnedPolicy(sorted(out.glob("checkpoint_*.zip"))[0])  # after cloning, before any PPO update
     assert json.loads(first.path.with_suffix(".json").read_text())["imitation"]["epochs"] == 200

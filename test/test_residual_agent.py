@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 
 import numpy as np
@@ -13,20 +12,13 @@ from crop_agent_ros.learning.agent import (ACTION_SCALE_MM, RESIDUAL_SPAN_MM, Ag
 from crop_agent_ros.policies.family_tuning import draw_terms, rule_file, tuned_rule
 from crop_agent_ros.policies.rollout import run_episodes
 from crop_sim_ros.task.layout import EXTENDED
+from policy_files import tiny_task_training
 
 TASK = "benton-sensing"  # 33 % of PAW readings missing: the rule's checkbook state matters
 
 
 def _train(out, *extra: str) -> dict:
-    from crop_agent_ros import train
-    from crop_agent_ros.learning.train_task import train_task
-    parser = argparse.ArgumentParser()
-    train.add_arguments(parser)
-    args = parser.parse_args(["--task", TASK, "--action", "residual", "--seed", "5", "--timesteps", "512",
-                              "--n-envs", "4", "--n-steps", "64", "--batch-size", "64", "--n-epochs", "1",
-                              "--eval-freq", "100000", "--validation-seasons", "2", "--net-arch", "8",
-                              "--no-progress", "--out", str(out), *extra])
-    return train_task(args)
+    return tiny_task_training(out, TASK, 5, "--action", "residual", *extra)
 
 
 @pytest.fixture(scope="module")
