@@ -112,3 +112,9 @@ def test_train_imitate_writes_a_policy_that_acts_like_its_demonstrations(tmp_pat
     assert json.loads(first.path.with_suffix(".json").read_text())["imitation"]["epochs"] == 200
     error = np.abs(first.act(demonstrations["observations"].astype(float)) - demonstrations["mm"])
     assert error.mean() < 1.0, error.mean()  # one season's 140 days, fitted 200 epochs: memorised
+    # the run's 1 % policy: after 2 of the 200 cloning epochs, further from the demonstrations
+    early = LearnedPolicy(out / "early_model.zip")
+    early_config = json.loads((out / "early_model.json").read_text())
+    assert early_config["timesteps_at_save"] == 0 and "after 2 of 200" in early_config["imitation"]["early_model"]
+    early_error = np.abs(early.act(demonstrations["observations"].astype(float)) - demonstrations["mm"])
+    assert early_error.mean() > 2.0 * error.mean()

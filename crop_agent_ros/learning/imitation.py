@@ -118,9 +118,10 @@ def load_demonstrations(patterns: list[str], task_name: str) -> dict:
 
 
 def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learning_rate: float = 1e-3,
-          batch_size: int = 256, log=print) -> dict:
+          batch_size: int = 256, log=print, after_epoch=None) -> dict:
     """Fit ``model``'s actor mean (an SB3 PPO ``MlpPolicy``) to the demonstrations (module docstring); the
-    critic and the log-std are left as they are. Returns the fit's error on held-out seasons (mm)."""
+    critic and the log-std are left as they are; ``after_epoch(epoch)`` is called after each epoch (1-based).
+    Returns the fit's error on held-out seasons (mm)."""
     import torch
     if interface.history.k != 1 or interface.action_kind != "mm":
         raise UsageError("--imitate: behaviour cloning fits the mm action from one observation (--history 1, "
@@ -162,6 +163,8 @@ def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learni
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
+        if after_epoch is not None:
+            after_epoch(epoch + 1)
         if (epoch + 1) % max(1, epochs // 5) == 0:
             log(f"behaviour cloning: epoch {epoch + 1}/{epochs}, {error_on} mean abs error {test_error_mm():.2f} mm",
                 file=sys.stderr)

@@ -189,8 +189,18 @@ def train_task(args) -> dict:
         if not 1 <= args.imitation_epochs <= 100_000:
             from crop_sim_ros.usage import UsageError
             raise UsageError(f"--imitation-epochs {args.imitation_epochs}: must be in 1..100,000")
+        # the run's "1 %" policy is the network after 1 % of its behaviour-cloning epochs (what "learning is
+        # real" compares the final policy with): kept in memory until the policy files can be written
+        early_epoch = max(1, args.imitation_epochs // 100)
+        early_weights = {}
+
+        def keep_early(epoch: int) -> None:
+            if epoch == early_epoch:
+                early_weights.update({k: v.clone() for k, v in model.policy.state_dict().items()})
+
         imitation = clone(model, interface, load_demonstrations(args.imitate, scenario.name), args.imitation_epochs,
-                          args.seed)
+                          args.seed, after_epoch=keep_early)
+        imitation["early_model"] = f"after {early_epoch} of {args.imitation_epochs} behaviour-cloning epochs"
     validation = validation_scenario(scenario, args.validation_seasons, args.seed)
     seasons = np.arange(args.validation_seasons)
     terms = draw_terms(validation, seasons, 1234)
@@ -220,13 +230,18 @@ def train_task(args) -> dict:
 
     rows: list[dict] = []
     early_at = max(args.n_envs * args.n_steps, args.timesteps // 100)
+    if imitation is not None:
+        cloned = {k: v.clone() for k, v in model.policy.state_dict().items()}
+        model.policy.load_state_dict(early_weights)
+        save(model, "early_model", 0)
+        model.policy.load_state_dict(cloned)
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Curve(BaseCallback):
         def __init__(self):
             super().__init__()
             self.next_eval = 0
-            self.early_saved = False
+            self.early_saved = imitation is not None  # saved already: 1 % of the cloning
             self.started = None
 
         def _on_training_start(self) -> None:
