@@ -118,3 +118,19 @@ def test_train_imitate_writes_a_policy_that_acts_like_its_demonstrations(tmp_pat
     assert early_config["timesteps_at_save"] == 0 and "after 2 of 200" in early_config["imitation"]["early_model"]
     early_error = np.abs(early.act(demonstrations["observations"].astype(float)) - demonstrations["mm"])
     assert early_error.mean() > 2.0 * error.mean()
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--task", "climates-quota", "--seasons", "0..1"], "is a mixture"),
+    (["--task", "benton-generated", "--seasons", "0..1"], "is not a family task"),
+    (["--task", "benton-quota", "--seasons", "5..1"], "--seasons: '5..1' names no season"),
+    (["--task", "benton-quota", "--seasons", "0..1000"], "trains on seasons 0..999"),
+    (["--task", "benton-quota", "--seasons", "0..1", "--action-noise-mm", "-1"], "--action-noise-mm: expected"),
+    (["--task", "benton-quota", "--seasons", "0..1", "--scenarios", "0"], "scenarios and decision_every_days"),
+])
+def test_demonstrate_refuses_bad_input_with_one_line(tmp_path, capsys, arguments, message):
+    from crop_agent_ros.cli import main
+    assert main(["demonstrate", *arguments, "--out", str(tmp_path / "d.npz")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("crop-sim demonstrate: ") and message in err, err
+    assert not (tmp_path / "d.npz").exists()
