@@ -134,3 +134,23 @@ def test_demonstrate_refuses_bad_input_with_one_line(tmp_path, capsys, arguments
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("crop-sim demonstrate: ") and message in err, err
     assert not (tmp_path / "d.npz").exists()
+
+
+def test_with_a_behaviour_policy_the_agent_acts_and_the_mpc_labels(demonstrations, tmp_path):
+    from crop_agent_ros.policies.rollout import run_episodes as run
+    np.savez_compressed(tmp_path / "demo.npz", **demonstrations)
+    tiny_task_training(tmp_path / "run", "benton-quota", 0, "--imitate", str(tmp_path / "demo.npz"),
+                       "--imitation-epochs", "3", timesteps=64, net_arch="8")
+    agent = tmp_path / "run" / "model.zip"
+    dagger = imitation.demonstrate("benton-quota", np.array([5]), CHEAP, action_noise_mm=0.0, seed=2,
+                                   behaviour_path=str(agent))
+    applied = run(LearnedPolicy(agent), "benton-quota", np.array([5]), seed=2, record=True)
+    days = int(applied.days[0])
+    # the states are the agent's (its applied water shows in the next day's observation) ...
+    yesterday = EXTENDED.index("irrigation_yesterday_mm")
+    np.testing.assert_allclose(dagger["observations"][1:days, yesterday], applied.daily["irrigation_mm"][:days - 1, 0],
+                               atol=1e-4)
+    # ... and the labels are not the agent's actions (a 3-epoch clone is far from the planner)
+    assert np.abs(dagger["mm"][:days] - applied.daily["irrigation_mm"][:days, 0]).mean() > 0.5
+    with pytest.raises(UsageError, match="trained on 'benton-quota', not 'benton-sensing'"):
+        imitation.demonstrate("benton-sensing", np.array([5]), CHEAP, 0.0, 2, behaviour_path=str(agent))

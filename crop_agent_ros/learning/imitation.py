@@ -14,7 +14,8 @@ Demonstrations: the MPC runs on training seasons of the task's own pool (generat
 agents train on; never a validation or evaluation season) with the task's terms drawn per season by the
 environment (``--seed``). To show the network states off the MPC's own path (Laskey et al. 2017, DART), the
 executed amount on days the MPC irrigates is its amount plus Gaussian noise of ``--action-noise-mm`` (cut at
-0); the label is always the MPC's own amount for the state reached. A file holds the observations (S, 29)
+0); the label is always the MPC's own amount for the state reached. With ``--behaviour POLICY.zip`` a trained
+agent acts instead and the MPC labels the states the agent reaches (one round of DAgger, Ross et al. 2011). A file holds the observations (S, 29)
 and labels (S,) mm of every live field-day, the season and day of each, and how they were made.
 
 Behaviour cloning (:func:`clone`): the actor's mean action a (the network's input as the agent sees it, the
@@ -41,10 +42,12 @@ FORMAT = "crop-sim demonstrations 1"
 
 class _Recorder:
     """Wraps the MPC in :func:`crop_agent_ros.policies.rollout.run_episodes`: records (observation, the MPC's
-    mm) of every live field and returns the MPC's mm with noise on wet days."""
+    mm) of every live field and returns the MPC's mm with noise on wet days, or, with a ``behaviour`` policy,
+    that policy's mm (DAgger: the MPC labels the states the behaviour policy visits)."""
 
-    def __init__(self, mpc, noise_mm: float, seed: int):
+    def __init__(self, mpc, noise_mm: float, seed: int, behaviour=None):
         self.mpc = mpc
+        self.behaviour = behaviour
         self.name = "mpc-recorder"
         self.noise_mm = noise_mm
         self.rng = np.random.default_rng(seed)
@@ -52,6 +55,8 @@ class _Recorder:
 
     def reset(self, seed=None):
         self.mpc.reset(seed)
+        if self.behaviour is not None:
+            self.behaviour.reset(seed)
 
     def begin_season(self, contexts):
         self.mpc.begin_season(contexts)
@@ -62,12 +67,16 @@ class _Recorder:
         self.observations.append(obs[live].astype(np.float32))
         self.labels.append(label[live])
         self.fields.append(np.flatnonzero(live))
+        if self.behaviour is not None:
+            return np.asarray(self.behaviour.act(obs), dtype=float)
         noise = self.rng.normal(0.0, self.noise_mm, len(label)) if self.noise_mm > 0 else 0.0
         return np.where(label > 0.0, np.maximum(label + noise, 0.0), 0.0)
 
 
-def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: float, seed: int) -> dict:
-    """The MPC's demonstrations on ``seasons`` of ``task_name``'s training pool (see the module docstring)."""
+def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: float, seed: int,
+                behaviour_path: str | None = None) -> dict:
+    """The MPC's demonstrations on ``seasons`` of ``task_name``'s training pool (see the module docstring);
+    with ``behaviour_path`` (a family agent's policy file of this task), on the states that agent visits."""
     from crop_sim_ros.task.layout import EXTENDED
     from crop_sim_ros.task.scenario import get_scenario
     from ..policies.family_mpc import FamilyMpcPolicy, continuation_pool
@@ -81,7 +90,14 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
         raise UsageError(f"--seasons: {task_name} trains on seasons 0..{scenario.weather.n_seasons - 1}")
     pool = continuation_pool(scenario, settings.scenarios)
     mpc = FamilyMpcPolicy(TaskConstants.of_scenario(scenario), pool, settings)
-    recorder = _Recorder(mpc, action_noise_mm, seed)
+    behaviour = None
+    if behaviour_path is not None:
+        from .agent import LearnedPolicy
+        with user_input(f"--behaviour {behaviour_path}", (OSError, ValueError, KeyError)):
+            behaviour = LearnedPolicy(behaviour_path, name="behaviour")
+        if behaviour.config.get("task") != task_name:
+            raise UsageError(f"--behaviour {behaviour_path}: trained on {behaviour.config.get('task')!r}, not {task_name!r}")
+    recorder = _Recorder(mpc, action_noise_mm, seed, behaviour)
     began = time.perf_counter()
     episodes = run_episodes(recorder, scenario, seasons, seed=seed)
     day = EXTENDED.index("days_since_sowing")
@@ -91,7 +107,7 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
             "day": np.rint(observations[:, day]).astype(np.int64), "episode_return_usd_ha": episodes.episode_return,
             "settings": json.dumps({**mpc.describe(), "replan_first_step_mm": settings.replan_first_step_mm,
                                     "finest_step_mm": settings.finest_step_mm, "action_noise_mm": action_noise_mm,
-                                    "seed": seed, "seasons": [int(seasons.min()), int(seasons.max())],
+                                    "seed": seed, "behaviour": behaviour_path, "seasons": [int(seasons.min()), int(seasons.max())],
                                     "wall_s": round(time.perf_counter() - began, 1)})}
 
 
@@ -186,6 +202,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--action-noise-mm", type=float, default=1.0,
                         help="std of the noise added to the executed amount on wet days (mm)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the terms, the noise and the sensor noise")
+    parser.add_argument("--behaviour", default=None,
+                        help="a family agent's policy file of this task: it acts, the MPC labels the states it visits "
+                             "(DAgger; --action-noise-mm is then unused)")
     parser.add_argument("--out", required=True, help="demonstrations file (.npz)")
 
 
@@ -198,7 +217,7 @@ def run(args) -> int:
         raise UsageError(f"--action-noise-mm: expected a number >= 0, got {args.action_noise_mm}")
     with user_input("--scenarios / --decision-every-days", (ValueError,)):
         settings = MpcSettings(scenarios=args.scenarios, decision_every_days=args.decision_every_days)
-    data = demonstrate(args.task, seasons, settings, args.action_noise_mm, args.seed)
+    data = demonstrate(args.task, seasons, settings, args.action_noise_mm, args.seed, args.behaviour)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out, **data)
