@@ -221,6 +221,7 @@ def run(args) -> int:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out, **data)
-    print(f"{len(data['mm'])} field-days of {len(seasons)} seasons -> {out}; MPC return "
-          f"{data['episode_return_usd_ha'].mean():,.0f} USD/ha (with its noise); {json.loads(data['settings'])['wall_s']} s")
+    actor = "the behaviour policy" if args.behaviour else "the MPC with its noise"
+    print(f"{len(data['mm'])} field-days of {len(seasons)} seasons -> {out}; return of {actor} "
+          f"{data['episode_return_usd_ha'].mean():,.0f} USD/ha; {json.loads(data['settings'])['wall_s']} s")
     return 0
