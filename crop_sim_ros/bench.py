@@ -63,7 +63,7 @@ def _busy_s_per_cpu(proc_stat: str | None = None) -> tuple[list[float], float]:
     return busy, stolen / ticks
 
 
-def _cpu_s_of(pid: int) -> float:
+def cpu_s_of(pid: int) -> float:
     """CPU seconds (user + system) a live process has used (/proc/PID/stat fields 14 and 15); 0 if gone."""
     try:
         after_name = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
@@ -82,7 +82,7 @@ class MachineLoad:
         self._start = self._sample()
 
     def _sample(self) -> tuple[float, tuple[list[float], float], float]:
-        own = sum(os.times()[:2]) + sum(_cpu_s_of(pid) for pid in self._own_pids)
+        own = sum(os.times()[:2]) + sum(cpu_s_of(pid) for pid in self._own_pids)
         return time.perf_counter(), _busy_s_per_cpu(), own
 
     def figures(self) -> dict:

@@ -43,12 +43,12 @@ def test_cpu_seconds_of_a_peer_process_count_as_ours():
                              "sys.stdout.flush(); time.sleep(30)"], stdout=subprocess.PIPE)
     try:
         assert busy.stdout.read(4) == b"done"
-        assert bench._cpu_s_of(busy.pid) >= 0.5
+        assert bench.cpu_s_of(busy.pid) >= 0.5
     finally:
         busy.kill()
         busy.wait()
     time.sleep(0.05)
-    assert bench._cpu_s_of(busy.pid) == 0.0  # gone
+    assert bench.cpu_s_of(busy.pid) == 0.0  # gone
 
 
 def test_bench_prints_the_cpu_model_and_the_load(capsys):

@@ -77,7 +77,7 @@ class NamespaceCpu:
         raise RuntimeError(f"the sweep (pid {pid}) did not leave this network namespace in {timeout_s:.0f} s")
 
     def _poll(self) -> None:
-        from crop_sim_ros.bench import _cpu_s_of
+        from crop_sim_ros.bench import cpu_s_of
         while True:
             for entry in Path("/proc").iterdir():
                 if not entry.name.isdigit():
@@ -87,7 +87,7 @@ class NamespaceCpu:
                         continue
                 except OSError:
                     continue
-                cpu_s = _cpu_s_of(int(entry.name))
+                cpu_s = cpu_s_of(int(entry.name))
                 if cpu_s > 0.0:
                     self._cpu_s[int(entry.name)] = cpu_s
             if self._stop.wait(self._interval_s):
