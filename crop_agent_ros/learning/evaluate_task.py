@@ -162,15 +162,9 @@ def generator_sources(task) -> list:
                      f"{task.weather.kind!r}); the protocol evaluates tasks trained on generated seasons")
 
 
-def reseeded(source, seed: int, n_seasons: int):
-    """``source``'s generator with another seed and pool size (seasons no training or validation pool holds)."""
-    return replace(source, name=f"{source.weather.generator}-generated-seed{seed}",
-                   weather=replace(source.weather, seed=seed, n_seasons=n_seasons))
-
-
 def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[EvaluationSet]:
     """The protocol's sets for ``task`` (see the module docstring), in table order."""
-    from crop_sim_ros.task.scenario import get_scenario, with_weather_of
+    from crop_sim_ros.task.scenario import get_scenario, reseeded, with_weather_of
     sources = generator_sources(task)
     climates = sorted({s.weather.generator for s in sources})
     held_out_climate = ("held-out climate" if len(climates) > 1

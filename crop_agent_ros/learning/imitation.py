@@ -77,8 +77,8 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
                 behaviour_path: str | None = None) -> dict:
     """The MPC's demonstrations on ``seasons`` of ``task_name``'s training pool (see the module docstring);
     with ``behaviour_path`` (a family agent's policy file of this task), on the states that agent visits."""
-    from crop_sim_ros.task.layout import EXTENDED
     from crop_sim_ros.task.scenario import get_scenario
+    from ..policies.base import DAYS_SINCE_SOWING
     from ..policies.family_mpc import FamilyMpcPolicy, continuation_pool
     from ..policies.family_oracle import TaskConstants
     from ..policies.rollout import run_episodes
@@ -100,11 +100,10 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
     recorder = _Recorder(mpc, action_noise_mm, seed, behaviour)
     began = time.perf_counter()
     episodes = run_episodes(recorder, scenario, seasons, seed=seed)
-    day = EXTENDED.index("days_since_sowing")
     observations = np.concatenate(recorder.observations)
     return {"format": FORMAT, "task": task_name, "observations": observations,
             "mm": np.concatenate(recorder.labels), "season": seasons[np.concatenate(recorder.fields)],
-            "day": np.rint(observations[:, day]).astype(np.int64), "episode_return_usd_ha": episodes.episode_return,
+            "day": np.rint(observations[:, DAYS_SINCE_SOWING]).astype(np.int64), "episode_return_usd_ha": episodes.episode_return,
             "settings": json.dumps({**mpc.describe(), "replan_first_step_mm": settings.replan_first_step_mm,
                                     "finest_step_mm": settings.finest_step_mm, "action_noise_mm": action_noise_mm,
                                     "seed": seed, "behaviour": behaviour_path, "seasons": [int(seasons.min()), int(seasons.max())],

@@ -43,12 +43,11 @@ import numpy as np
 
 from crop_sim_ros.task.layout import EXTENDED
 
-from .base import BasePolicy, SeasonContext
-from .family_oracle import TaskConstants, field_problems, plan_fields, season_range
+from .base import DAYS_SINCE_SOWING, BasePolicy, SeasonContext
+from .family_oracle import TaskConstants, field_problems, plan_fields, season_range, within_quota
 
 POOL_SEED = 700_001
 WEATHER_SERIES = ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "et0_mm")
-DAY = EXTENDED.index("days_since_sowing")
 APPLIED_YESTERDAY = EXTENDED.index("irrigation_yesterday_mm")
 
 
@@ -74,7 +73,7 @@ class MpcSettings:
 
 def continuation_pool(generator_scenario, scenarios: int, seed: int = POOL_SEED) -> list[SeasonContext]:
     """``scenarios`` generated seasons of ``generator_scenario``'s weather generator with ``seed``."""
-    from crop_agent_ros.learning.evaluate_task import reseeded
+    from crop_sim_ros.task.scenario import reseeded
     from .rollout import season_contexts
     return season_contexts(reseeded(generator_scenario, seed, scenarios))
 
@@ -94,17 +93,6 @@ def spliced(truth: SeasonContext, continuation: SeasonContext, known_days: int) 
         known, guessed = np.asarray(getattr(truth, name), dtype=float), np.asarray(getattr(continuation, name))
         series[name] = np.where(days < known_days, known, guessed[source])
     return replace(truth, name=f"{truth.name}|{continuation.name}@{known_days}", **series)
-
-
-def _within_quota(schedule: np.ndarray, quota_mm: float) -> np.ndarray:
-    """``schedule`` with water taken off its last wet days until its total is within ``quota_mm``."""
-    out = schedule.copy()
-    for d in np.flatnonzero(out)[::-1]:
-        excess = out.sum() - quota_mm
-        if excess <= 0.0:
-            break
-        out[d] = max(out[d] - excess, 0.0)
-    return out
 
 
 class FamilyMpcPolicy(BasePolicy):
@@ -146,7 +134,7 @@ class FamilyMpcPolicy(BasePolicy):
                 problems.append(replace(truth, context=context, frozen_days=day))
                 if day > 0:
                     start = np.concatenate([self.applied[i][:day], self.plans[i][j][day:]])
-                    starts.append(_within_quota(start, truth.quota_mm))
+                    starts.append(within_quota(start, truth.quota_mm))
         if day == 0:
             results = plan_fields(problems, finest_step_mm=self.settings.finest_step_mm)
         else:
@@ -164,7 +152,7 @@ class FamilyMpcPolicy(BasePolicy):
         if not self.contexts or len(self.contexts) != len(obs):
             raise ValueError(f"family MPC: begin_season with one context per field first ({len(self.contexts)} "
                              f"contexts for {len(obs)} observations)")
-        days = np.rint(obs[:, DAY]).astype(int)
+        days = np.rint(obs[:, DAYS_SINCE_SOWING]).astype(int)
         self.done |= days < self.last_day  # a field that restarted (its episode ended) is not planned again
         for i in np.flatnonzero(~self.done & (days > 0)):
             self.applied[i][days[i] - 1] = obs[i, APPLIED_YESTERDAY]
@@ -212,7 +200,7 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     The rule's return per season is its mean over the table's noise seeds (the MPC reads no noisy value:
     its return does not depend on the noise seed). Intervals: 95 % bootstrap over seasons, paired."""
     from crop_sim_ros.task.scenario import get_scenario
-    from crop_agent_ros.learning.evaluate_task import RULE, evaluation_sets
+    from crop_agent_ros.learning.evaluate_task import RULE, _ratio, evaluation_sets, interval
     from .rollout import run_episodes
     arguments = table["arguments"]
     task = get_scenario(table["task"])
@@ -236,17 +224,16 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     rule = np.asarray(entry["returns_usd_ha"][RULE], dtype=float)[0][index].mean(axis=-1)
     regrets = np.stack([oracle - rule, oracle - mpc_returns], axis=1)  # (M, 2): rule, MPC
     means = _bootstrap_mean(regrets, np.random.default_rng(0), resamples)
-    ratio = means[:, 1] / np.where(means[:, 0] > 0, means[:, 0], np.nan)
-    low, high = np.nanpercentile(ratio, [2.5, 97.5])
+    low, high = interval(_ratio(means[:, 1], means[:, 0]))
     rows = [{"season": int(entry["seasons"][i]), "source": str(entry["season_sources"][i]) if "season_sources" in entry
              else "", "oracle_usd_ha": float(o), "rule_regret_usd_ha": float(o - r), "mpc_regret_usd_ha": float(o - m)}
             for i, o, r, m in zip(index, oracle, rule, mpc_returns)]
     summary = {
         "set": set_name, "task": task.name, "seasons": len(index), "oracle_usd_ha": float(oracle.mean()),
         "rule_regret_usd_ha": float(regrets[:, 0].mean()),
-        "rule_regret_ci": [float(v) for v in np.percentile(means[:, 0], [2.5, 97.5])],
+        "rule_regret_ci": list(interval(means[:, 0])),
         "mpc_regret_usd_ha": float(regrets[:, 1].mean()),
-        "mpc_regret_ci": [float(v) for v in np.percentile(means[:, 1], [2.5, 97.5])],
+        "mpc_regret_ci": list(interval(means[:, 1])),
         "mpc_over_rule": float(regrets[:, 1].mean() / regrets[:, 0].mean()), "mpc_over_rule_ci": [low, high],
         "mpc_wins_over_rule": float(np.mean(regrets[:, 1] < regrets[:, 0])),
         "settings": {**mpc.describe(), "replan_first_step_mm": settings.replan_first_step_mm,

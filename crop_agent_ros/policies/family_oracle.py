@@ -432,13 +432,19 @@ def _start_schedules(fs: _Fields, start) -> np.ndarray:
             raise ValueError(f"family oracle: the start schedule of {p.context.name!r} is not feasible (each day "
                              f"in [0, {p.capacity_mm_per_day:g}] mm, total <= {p.quota_mm:g} mm)")
         # within the planning quota: an environment's realised schedule may use the quota to the last ulp
-        for d in np.flatnonzero(given)[::-1]:
-            excess = given.sum() - fs.quota_mm[i]
-            if excess <= 0.0:
-                break
-            given[d] = max(given[d] - excess, 0.0)
-        schedules[:p.days, i] = given
+        schedules[:p.days, i] = within_quota(given, fs.quota_mm[i])
     return schedules
+
+
+def within_quota(schedule: np.ndarray, quota_mm: float) -> np.ndarray:
+    """``schedule`` (mm per day) with water taken off its last wet days until its total is within ``quota_mm``."""
+    out = np.array(schedule, dtype=float)
+    for d in np.flatnonzero(out)[::-1]:
+        excess = out.sum() - quota_mm
+        if excess <= 0.0:
+            break
+        out[d] = max(out[d] - excess, 0.0)
+    return out
 
 
 def _feasible(schedule: np.ndarray, problem: FieldProblem, tolerance_mm: float = 0.0) -> bool:

@@ -465,6 +465,13 @@ def with_weather_of(task: Scenario, weather: Scenario) -> Scenario:
                    description=f"{task.description}; weather of {weather.name}")
 
 
+def reseeded(source: Scenario, seed: int, n_seasons: int) -> Scenario:
+    """``source``'s weather generator with another seed and pool size (seasons no training or validation pool
+    holds): far evaluation seeds, and the MPC's weather continuations."""
+    return replace(source, name=f"{source.weather.generator}-generated-seed{seed}",
+                   weather=replace(source.weather, seed=seed, n_seasons=n_seasons))
+
+
 def scenario_names() -> list[str]:
     """The names of the built-in scenarios."""
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.yaml"))
