@@ -43,7 +43,7 @@ def test_a_replan_keeps_the_frozen_days_and_named_starts_are_refused(quota_task)
 def test_the_continuation_is_aligned_by_the_day_of_the_year(quota_task):
     _, contexts, pool = quota_task
     truth = replace(contexts[0], extra={**contexts[0].extra, "sowing_date": "2000-04-10"})  # day 101 of 2000
-    guess = replace(pool[0], extra={**pool[0].extra, "sowing_date": "2001-04-05"})         # day 95 of 2001
+    guess = replace(pool["benton"][0], extra={**pool["benton"][0].extra, "sowing_date": "2001-04-05"})         # day 95 of 2001
     out = fm.spliced(truth, guess, known_days=50)
     np.testing.assert_array_equal(out.rain_mm[:50], truth.rain_mm[:50])
     np.testing.assert_array_equal(out.et0_mm[50:60], guess.et0_mm[56:66])  # 6 days of the year later
@@ -78,6 +78,20 @@ def test_the_mpc_acts_without_the_future_weather_and_without_noisy_values(quota_
     problem = fo.field_problems(contexts_with_terms([contexts[0]], TERMS), fo.TaskConstants.of_scenario(scenario))
     oracle = fo.plan_fields(problem)[0]
     assert episodes.episode_return[0] <= oracle.return_value + 1e-6
+
+
+def test_a_mixture_has_a_pool_per_climate_and_each_field_draws_from_its_own():
+    pools = fm.continuation_pool(get_scenario("climates-quota"), 2)
+    assert sorted(pools) == ["benton", "gainesville"]
+    assert [c.extra["sowing_date"][5:] for c in pools["gainesville"]] == ["02-01", "02-01"]  # its own sowing date
+    assert all(c.extra["source"].startswith("generator(benton, seed=700001") for c in pools["benton"])
+    contexts = season_contexts(get_scenario("climates-quota"))
+    assert fm.climate_of(contexts[1500], pools) == "gainesville" and fm.climate_of(contexts[7], pools) == "benton"
+    assert fm.climate_of(contexts[1500], {"benton": pools["benton"]}) == "benton"  # one pool serves every field
+    with pytest.raises(ValueError, match="has no continuation pool"):
+        fm.climate_of(contexts[1500], {"benton": pools["benton"], "maricopa": pools["benton"]})
+    with pytest.raises(ValueError, match="continuations need a weather generator"):
+        fm.continuation_pool(get_scenario("benton-2000"), 2)
 
 
 def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):

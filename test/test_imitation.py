@@ -121,10 +121,10 @@ def test_train_imitate_writes_a_policy_that_acts_like_its_demonstrations(tmp_pat
 
 
 @pytest.mark.parametrize("arguments, message", [
-    (["--task", "climates-quota", "--seasons", "0..1"], "is a mixture"),
     (["--task", "benton-generated", "--seasons", "0..1"], "is not a family task"),
     (["--task", "benton-quota", "--seasons", "5..1"], "--seasons: '5..1' names no season"),
-    (["--task", "benton-quota", "--seasons", "0..1000"], "trains on seasons 0..999"),
+    (["--task", "benton-quota", "--seasons", "0..1000"], "must lie within 0..999"),
+    (["--task", "climates-quota", "--seasons", "999..1000"], "must lie within 0..999 (of each part"),
     (["--task", "benton-quota", "--seasons", "0..1", "--action-noise-mm", "-1"], "--action-noise-mm: expected"),
     (["--task", "benton-quota", "--seasons", "0..1", "--scenarios", "0"], "scenarios and decision_every_days"),
 ])
@@ -154,3 +154,20 @@ def test_with_a_behaviour_policy_the_agent_acts_and_the_mpc_labels(demonstration
     assert np.abs(dagger["mm"][:days] - applied.daily["irrigation_mm"][:days, 0]).mean() > 0.5
     with pytest.raises(UsageError, match="trained on 'benton-quota', not 'benton-sensing'"):
         imitation.demonstrate("benton-sensing", np.array([5]), CHEAP, 0.0, 2, behaviour_path=str(agent))
+
+
+def test_a_mixture_is_demonstrated_on_each_climate_with_its_own_continuations():
+    """climates-quota: position 3 of each climate is pool seasons 3 (Benton) and 1003 (Gainesville); the
+    Gainesville field's labels are those of an MPC that has only Gainesville's continuations."""
+    data = imitation.demonstrate("climates-quota", np.array([3]), CHEAP, action_noise_mm=0.0, seed=4)
+    assert sorted(np.unique(data["season"])) == [3, 1003]
+    scenario = get_scenario("climates-quota")
+    gainesville_only = fm.FamilyMpcPolicy(TaskConstants.of_scenario(scenario),
+                                          {"gainesville": fm.continuation_pool(get_scenario("gainesville-generated"), 1)["gainesville"]},
+                                          CHEAP)
+    both = run_episodes(gainesville_only, scenario, np.array([3, 1003]), seed=4, record=True)
+    days = int(both.days[1])
+    mine = data["season"] == 1003
+    np.testing.assert_array_equal(data["day"][mine], np.arange(days))
+    np.testing.assert_array_equal(data["mm"][mine], both.daily["irrigation_mm"][:days, 1])
+    assert data["mm"][mine].sum() > 0.0

@@ -11,7 +11,8 @@ them before (optional) PPO fine-tuning on the reward.
         [--action-noise-mm 1.0] [--seed 0] --out demos/benton-quota-0.npz
 
 Demonstrations: the MPC runs on training seasons of the task's own pool (generated weather, the seasons the
-agents train on; never a validation or evaluation season) with the task's terms drawn per season by the
+agents train on; never a validation or evaluation season; for a task on several climates, the same positions
+of each climate's pool, each field planning with its own climate's continuations) with the task's terms drawn per season by the
 environment (``--seed``). To show the network states off the MPC's own path (Laskey et al. 2017, DART), the
 executed amount on days the MPC irrigates is its amount plus Gaussian noise of ``--action-noise-mm`` (cut at
 0); the label is always the MPC's own amount for the state reached. With ``--behaviour POLICY.zip`` a trained
@@ -75,21 +76,22 @@ class _Recorder:
 
 def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: float, seed: int,
                 behaviour_path: str | None = None) -> dict:
-    """The MPC's demonstrations on ``seasons`` of ``task_name``'s training pool (see the module docstring);
-    with ``behaviour_path`` (a family agent's policy file of this task), on the states that agent visits."""
+    """The MPC's demonstrations on ``seasons`` of ``task_name``'s training pool (of each climate of a mixture:
+    its pool index is the file's ``season``; see the module docstring); with ``behaviour_path`` (a family agent's policy file of this task), on the states that agent visits."""
     from crop_sim_ros.task.scenario import get_scenario
     from ..policies.base import DAYS_SINCE_SOWING
     from ..policies.family_mpc import FamilyMpcPolicy, continuation_pool
     from ..policies.family_oracle import TaskConstants
     from ..policies.rollout import run_episodes
+    from ..policies.family_tuning import of_each_part
     scenario = get_scenario(task_name)
-    if not scenario.is_family_task or scenario.weather.kind != "generator":
-        raise UsageError(f"--task: demonstrations need a family task trained on one weather generator; "
-                         f"{task_name!r} is {'not a family task' if not scenario.is_family_task else 'a mixture'}")
-    if seasons.max() >= scenario.weather.n_seasons:
-        raise UsageError(f"--seasons: {task_name} trains on seasons 0..{scenario.weather.n_seasons - 1}")
-    pool = continuation_pool(scenario, settings.scenarios)
-    mpc = FamilyMpcPolicy(TaskConstants.of_scenario(scenario), pool, settings)
+    if not scenario.is_family_task or scenario.weather.kind not in ("generator", "mixture"):
+        raise UsageError(f"--task: demonstrations need a family task trained on generated weather; {task_name!r} "
+                         f"is {'not a family task' if not scenario.is_family_task else 'on ' + scenario.weather.kind}")
+    with user_input(f"--seasons (of {task_name})", (ValueError,)):
+        pool_seasons = of_each_part(scenario, seasons)
+    pools = continuation_pool(scenario, settings.scenarios)
+    mpc = FamilyMpcPolicy(TaskConstants.of_scenario(scenario), pools, settings)
     behaviour = None
     if behaviour_path is not None:
         from .agent import LearnedPolicy
@@ -99,10 +101,10 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
             raise UsageError(f"--behaviour {behaviour_path}: trained on {behaviour.config.get('task')!r}, not {task_name!r}")
     recorder = _Recorder(mpc, action_noise_mm, seed, behaviour)
     began = time.perf_counter()
-    episodes = run_episodes(recorder, scenario, seasons, seed=seed)
+    episodes = run_episodes(recorder, scenario, pool_seasons, seed=seed)
     observations = np.concatenate(recorder.observations)
     return {"format": FORMAT, "task": task_name, "observations": observations,
-            "mm": np.concatenate(recorder.labels), "season": seasons[np.concatenate(recorder.fields)],
+            "mm": np.concatenate(recorder.labels), "season": pool_seasons[np.concatenate(recorder.fields)],
             "day": np.rint(observations[:, DAYS_SINCE_SOWING]).astype(np.int64), "episode_return_usd_ha": episodes.episode_return,
             "settings": json.dumps({**mpc.describe(), "replan_first_step_mm": settings.replan_first_step_mm,
                                     "finest_step_mm": settings.finest_step_mm, "action_noise_mm": action_noise_mm,
@@ -194,8 +196,8 @@ def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learni
 
 def add_arguments(parser) -> None:
     from ..policies.family_mpc import MpcSettings
-    parser.add_argument("--task", required=True, help="a family task on one weather generator (e.g. benton-quota)")
-    parser.add_argument("--seasons", required=True, help="training-pool seasons 'A..B'")
+    parser.add_argument("--task", required=True, help="a family task on generated weather (e.g. benton-quota)")
+    parser.add_argument("--seasons", required=True, help="training-pool seasons 'A..B' (of each climate of a mixture)")
     parser.add_argument("--scenarios", type=int, default=6, help="MPC: weather continuations per decision")
     parser.add_argument("--decision-every-days", type=int, default=MpcSettings.decision_every_days)
     parser.add_argument("--action-noise-mm", type=float, default=1.0,
@@ -221,6 +223,6 @@ def run(args) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out, **data)
     actor = "the behaviour policy" if args.behaviour else "the MPC with its noise"
-    print(f"{len(data['mm'])} field-days of {len(seasons)} seasons -> {out}; return of {actor} "
+    print(f"{len(data['mm'])} field-days of {len(np.unique(data['season']))} seasons -> {out}; return of {actor} "
           f"{data['episode_return_usd_ha'].mean():,.0f} USD/ha; {json.loads(data['settings'])['wall_s']} s")
     return 0

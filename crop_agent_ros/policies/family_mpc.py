@@ -11,7 +11,8 @@ what a farm's controller can know on day t, and nothing more:
   water applied on days 0..t-1 (the observation's ``irrigation_yesterday_mm``), hence the crop's exact state;
 - not the weather after today: in its place ``scenarios`` continuations, seasons of the task's weather
   generator drawn with :data:`POOL_SEED` (no training, validation or evaluation pool uses that seed), each
-  aligned with the season by the day of the year of sowing.
+  aligned with the season by the day of the year of sowing. A task on several climates (a mixture) has one
+  pool per generator, and each field draws from its own climate's.
 
 Every ``decision_every_days`` days (and on the sowing day) it re-plans: for each continuation, the oracle's
 search finds the best schedule of the rest of the season on the true weather so far followed by the
@@ -71,11 +72,31 @@ class MpcSettings:
                              f"{self.finest_step_mm} and {self.replan_first_step_mm}")
 
 
-def continuation_pool(generator_scenario, scenarios: int, seed: int = POOL_SEED) -> list[SeasonContext]:
-    """``scenarios`` generated seasons of ``generator_scenario``'s weather generator with ``seed``."""
-    from crop_sim_ros.task.scenario import reseeded
+def continuation_pool(generator_scenario, scenarios: int, seed: int = POOL_SEED) -> dict[str, list[SeasonContext]]:
+    """Generator name -> ``scenarios`` generated seasons of that generator with ``seed``: one entry for a
+    scenario on one weather generator, one per part for a mixture (each part with its own sowing date)."""
+    from crop_sim_ros.task.scenario import get_scenario, reseeded
     from .rollout import season_contexts
-    return season_contexts(reseeded(generator_scenario, seed, scenarios))
+    weather = generator_scenario.weather
+    if weather.kind == "mixture":
+        parts = [get_scenario(name, generator_scenario.data_dir) for name in weather.mixture]
+        return {name: pool for part in parts for name, pool in continuation_pool(part, scenarios, seed).items()}
+    if weather.kind != "generator":
+        raise ValueError(f"family MPC: continuations need a weather generator; {generator_scenario.name!r} has "
+                         f"{weather.kind} weather")
+    return {weather.generator: season_contexts(reseeded(generator_scenario, seed, scenarios))}
+
+
+def climate_of(context: SeasonContext, pools: dict) -> str:
+    """The pool a field draws its continuations from: the only one, or its weather generator's."""
+    from crop_sim_ros.weather.generator import generator_of_source
+    if len(pools) == 1:
+        return next(iter(pools))
+    name = generator_of_source(str(context.extra.get("source", "")))
+    if name not in pools:
+        raise ValueError(f"family MPC: season {context.name} ({context.extra.get('source')}) has no continuation "
+                         f"pool (pools: {', '.join(pools)})")
+    return name
 
 
 def _day_of_year(context: SeasonContext) -> int:
@@ -103,11 +124,13 @@ class FamilyMpcPolicy(BasePolicy):
     name = "family-mpc"
     observation_sizes = (EXTENDED.size,)
 
-    def __init__(self, constants: TaskConstants, pool: list[SeasonContext], settings: MpcSettings = MpcSettings()):
-        if len(pool) < settings.scenarios:
-            raise ValueError(f"family MPC: {settings.scenarios} scenarios need as many pool seasons, got {len(pool)}")
+    def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]],
+                 settings: MpcSettings = MpcSettings()):
+        if not pools or min(len(pool) for pool in pools.values()) < settings.scenarios:
+            raise ValueError(f"family MPC: {settings.scenarios} scenarios need as many seasons in every pool, got "
+                             f"{ {name: len(pool) for name, pool in pools.items()} }")
         self.constants = constants
-        self.pool = list(pool[:settings.scenarios])
+        self.pools = {name: list(pool[:settings.scenarios]) for name, pool in pools.items()}
         self.settings = settings
         self.contexts: list[SeasonContext] = []
         self.decisions = 0
@@ -116,7 +139,8 @@ class FamilyMpcPolicy(BasePolicy):
     def begin_season(self, context) -> None:
         self.contexts = list(context) if isinstance(context, (list, tuple)) else [context]
         self.problems = field_problems(self.contexts, self.constants)
-        n, k = len(self.contexts), len(self.pool)
+        self.field_pools = [self.pools[climate_of(c, self.pools)] for c in self.contexts]
+        n, k = len(self.contexts), self.settings.scenarios
         self.applied = [np.zeros(len(c.rain_mm)) for c in self.contexts]
         self.plans = [[None] * k for _ in range(n)]
         self.block = [np.zeros(len(c.rain_mm)) for c in self.contexts]
@@ -125,11 +149,11 @@ class FamilyMpcPolicy(BasePolicy):
 
     def _replan(self, fields: list[int], day: int) -> None:
         began = time.process_time()
-        k = len(self.pool)
+        k = self.settings.scenarios
         problems, starts = [], []
         for i in fields:
             truth = self.problems[i]
-            for j, continuation in enumerate(self.pool):
+            for j, continuation in enumerate(self.field_pools[i]):
                 context = spliced(truth.context, continuation, day + 1)
                 problems.append(replace(truth, context=context, frozen_days=day))
                 if day > 0:
@@ -170,7 +194,8 @@ class FamilyMpcPolicy(BasePolicy):
 
     def describe(self):
         return {"name": self.name, "scenarios": self.settings.scenarios,
-                "decision_every_days": self.settings.decision_every_days, "pool_seed": POOL_SEED}
+                "decision_every_days": self.settings.decision_every_days, "pool_seed": POOL_SEED,
+                "pools": sorted(self.pools)}
 
 
 # --- command line: the MPC on an evaluated set, beside the oracle and the rule of that evaluation ------------
@@ -214,8 +239,8 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
         raise ValueError(f"--seasons: {set_name} has seasons 0..{len(entry['seasons']) - 1}")
     terms = {name: np.asarray(values, dtype=float)[index] for name, values in entry["terms"].items()}
     generator = pool_generator_of(set_name)
-    pool = continuation_pool(get_scenario(f"{generator}-generated", task.data_dir), settings.scenarios)
-    mpc = FamilyMpcPolicy(TaskConstants.of_scenario(evaluation_set.scenario), pool, settings)
+    pools = continuation_pool(get_scenario(f"{generator}-generated", task.data_dir), settings.scenarios)
+    mpc = FamilyMpcPolicy(TaskConstants.of_scenario(evaluation_set.scenario), pools, settings)
     began = time.perf_counter()
     mpc_returns = run_episodes(mpc, evaluation_set.scenario, np.asarray(entry["seasons"])[index], seed=0,
                                terms=terms).episode_return

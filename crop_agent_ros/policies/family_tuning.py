@@ -38,11 +38,19 @@ NEVER = {"skip_rain_mm": 1e6, "start_tt_fraction": 0.0, "stop_tt_fraction": 10.0
 def training_seasons(scenario, first: int, last: int) -> np.ndarray:
     """Seasons FIRST..LAST of the training pool; for a mixture, FIRST..LAST of each part (so that every
     climate of the mixture is tuned on)."""
+    return of_each_part(scenario, np.arange(first, last + 1))
+
+
+def of_each_part(scenario, seasons: np.ndarray) -> np.ndarray:
+    """Indices into ``scenario``'s pool of ``seasons``: themselves, or for a mixture those positions of each
+    part (part by part); ValueError if a position is past its part's pool."""
     from crop_sim_ros.task.scenario import get_scenario
-    if scenario.weather.kind != "mixture":
-        return np.arange(first, last + 1)
-    offsets = np.cumsum([0] + [get_scenario(n, scenario.data_dir).n_seasons for n in scenario.weather.mixture])
-    return np.concatenate([offset + np.arange(first, last + 1) for offset in offsets[:-1]])
+    sizes = ([get_scenario(n, scenario.data_dir).n_seasons for n in scenario.weather.mixture]
+             if scenario.weather.kind == "mixture" else [scenario.n_seasons])
+    if len(seasons) and (seasons.min() < 0 or seasons.max() >= min(sizes)):
+        raise ValueError(f"seasons must lie within 0..{min(sizes) - 1} (of each part of a mixture)")
+    offsets = np.cumsum([0] + sizes)
+    return np.concatenate([offset + np.asarray(seasons, dtype=np.int64) for offset in offsets[:-1]])
 
 
 def rule_file(task: str) -> Path:

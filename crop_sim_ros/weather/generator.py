@@ -328,6 +328,14 @@ def generate_seasons(params: GeneratorParameters, start: date, days: int, n_seas
     return series
 
 
+def generator_of_source(source: str) -> str | None:
+    """The generator name in a series' source as :func:`generate_seasons` writes it
+    (``generator(<name>, seed=...)``), or None for weather that no generator made."""
+    if not source.startswith("generator(") or "," not in source:
+        return None
+    return source[len("generator("):source.index(",")]
+
+
 def generate_season(params: GeneratorParameters, start: date, days: int,
                     seed: int | np.random.Generator) -> WeatherSeries:
     """One season: :func:`generate_seasons` with n_seasons = 1."""
