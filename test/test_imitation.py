@@ -72,7 +72,7 @@ def test_cloning_fits_the_actor_and_reaches_the_zero_bound_one_sidedly():
     day = obs[:, DAY]
     mm = np.clip(0.3 * (day - 40.0), 0.0, 20.0)  # nothing before day 40, then a ramp to 20 mm
     data = {"observations": obs, "mm": mm, "season": np.tile(np.arange(24), len(obs) // 24), "day": day,
-            "files": ["synthetic"]}
+            "file": np.zeros(len(obs), dtype=int), "files": ["synthetic"]}
     interface = AgentInterface(ObservationScaler.fit(obs), 1, "mm")
     model = PPO("MlpPolicy", Spaces((EXTENDED.size,), (1,)), policy_kwargs={"net_arch": [32, 32]}, seed=0, device="cpu")
     report = imitation.clone(model, interface, data, epochs=60, seed=0, log=lambda *a, **k: None)
@@ -81,8 +81,30 @@ def test_cloning_fits_the_actor_and_reaches_the_zero_bound_one_sidedly():
     assert report["abs_error_mm"] < 1.5
     action, _ = model.predict(interface.scaler(obs[day < 30]).astype(np.float32), deterministic=True)
     assert np.mean((action + 1.0) / 2.0 * 25.0) < 0.5  # the 0 mm days: the clipped action is at the bound
-    with pytest.raises(UsageError, match="--history 1"):
-        imitation.clone(model, AgentInterface(interface.scaler, 2, "mm"), data, epochs=1, seed=0)
+    with pytest.raises(UsageError, match="fits the mm action"):
+        imitation.clone(model, AgentInterface(interface.scaler, 1, "residual", rule=object()), data, epochs=1, seed=0)
+
+
+def test_with_a_history_the_inputs_are_the_stacks_the_agent_sees():
+    """Demonstrations of 3 seasons from 2 files, shuffled: each sample's input is what an agent with a
+    3-day history computes when it meets that season's observations day by day."""
+    obs = _observations(seasons=3)[:3 * 20]
+    season, day = np.tile([7, 8, 7], 20), obs[:, DAY]
+    file = np.tile([0, 0, 1], 20)  # season 7 in two files: two episodes
+    data = {"observations": obs, "mm": day, "season": season, "day": day.astype(int), "file": file,
+            "files": ["a.npz", "b.npz"]}
+    shuffle = np.random.default_rng(0).permutation(len(obs))
+    shuffled = {k: (v[shuffle] if isinstance(v, np.ndarray) else v) for k, v in data.items()}
+    scaler = ObservationScaler.fit(obs)
+    inputs, order = imitation.network_inputs(AgentInterface(scaler, 3, "mm"), shuffled)
+    assert inputs.shape == (len(obs), 3 * EXTENDED.size)
+    agent = AgentInterface(scaler, 3, "mm")
+    expected = np.concatenate([agent.observe(obs[3 * t:3 * t + 3])[0] for t in range(20)])  # rows: day-major
+    for position, row in enumerate(shuffle[order]):
+        np.testing.assert_array_equal(inputs[position], expected[row])
+    gap = {**shuffled, "day": np.where(shuffled["day"] == 5, 6, shuffled["day"])}
+    with pytest.raises(UsageError, match="does not hold consecutive days from day 0"):
+        imitation.network_inputs(AgentInterface(scaler, 3, "mm"), gap)
 
 
 def test_bad_demonstration_files_are_refused(tmp_path, demonstrations):

@@ -20,7 +20,7 @@ agent acts instead and the MPC labels the states the agent reaches (one round of
 and labels (S,) mm of every live field-day, the season and day of each, and how they were made.
 
 Behaviour cloning (:func:`clone`): the actor's mean action a (the network's input as the agent sees it, the
-normalised observation) is fitted to a* = mm / 12.5 - 1 (the agent's a in [-1, 1] -> (a + 1) / 2 x 25 mm) by
+normalised observation, or the last k of them with ``--history k``) is fitted to a* = mm / 12.5 - 1 (the agent's a in [-1, 1] -> (a + 1) / 2 x 25 mm) by
 squared error, one-sided where a* sits on a bound (a* = -1, no water: any a <= -1 is exact, since the action
 is clipped there). A tenth of the seasons is held out of the fit to report its error (mean absolute, mm).
 """
@@ -119,7 +119,7 @@ def load_demonstrations(patterns: list[str], task_name: str) -> dict:
     if not paths:
         raise UsageError(f"--imitate: no demonstration file matches {' '.join(patterns)}")
     parts = []
-    for path in paths:
+    for number, path in enumerate(paths):
         with user_input(f"--imitate {path}", (OSError, ValueError, KeyError)):
             with np.load(path) as data:
                 if str(data["format"]) != FORMAT:
@@ -127,11 +127,37 @@ def load_demonstrations(patterns: list[str], task_name: str) -> dict:
                 if str(data["task"]) != task_name:
                     raise ValueError(f"demonstrations of {str(data['task'])!r}, not of {task_name!r}")
                 part = {k: data[k] for k in ("observations", "mm", "season", "day")}
+                part["file"] = np.full(len(part["mm"]), number)
         if not (np.all(np.isfinite(part["observations"])) and np.all(np.isfinite(part["mm"]))
                 and np.all(part["mm"] >= 0.0)):
             raise UsageError(f"--imitate {path}: observations and mm must be finite, mm >= 0")
         parts.append(part)
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} | {"files": paths}
+
+
+def network_inputs(interface, demonstrations: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(S, input_size) network inputs of the demonstrations as the agent would have seen them, and the order
+    of the samples they are in. With a history of k days each input is the last k scaled observations of the
+    same season of the same file, newest last, a season's first observation repeated before its start (as
+    :class:`~crop_agent_ros.learning.agent.History` stacks them); a season's days must run 0, 1, 2, ..."""
+    scaled = interface.scaler(demonstrations["observations"].astype(float))
+    k = interface.history.k
+    order = np.lexsort((demonstrations["day"], demonstrations["season"], demonstrations["file"]))
+    if k == 1:
+        return scaled[order], order
+    day = demonstrations["day"][order]
+    episode = np.stack([demonstrations["file"][order], demonstrations["season"][order]])
+    starts = np.r_[True, np.any(episode[:, 1:] != episode[:, :-1], axis=0)]
+    first_row = np.maximum.accumulate(np.where(starts, np.arange(len(day)), 0))
+    broken = day != np.arange(len(day)) - first_row
+    if broken.any():
+        row = order[np.argmax(broken)]
+        raise UsageError(f"--imitate: season {demonstrations['season'][row]} of "
+                         f"{demonstrations['files'][demonstrations['file'][row]]} does not hold consecutive days from "
+                         f"day 0 (a history of {k} days needs them)")
+    rows = np.arange(len(day))
+    lagged = [scaled[order][rows - np.minimum(lag, day)] for lag in range(k - 1, -1, -1)]  # oldest first
+    return np.concatenate(lagged, axis=1), order
 
 
 def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learning_rate: float = 1e-3,
@@ -140,15 +166,14 @@ def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learni
     critic and the log-std are left as they are; ``after_epoch(epoch)`` is called after each epoch (1-based).
     Returns the fit's error on held-out seasons (mm)."""
     import torch
-    if interface.history.k != 1 or interface.action_kind != "mm":
-        raise UsageError("--imitate: behaviour cloning fits the mm action from one observation (--history 1, "
-                         "--action mm)")
-    inputs = interface.scaler(demonstrations["observations"].astype(float)).astype(np.float32)
-    target = np.clip(demonstrations["mm"] / (ACTION_SCALE_MM / 2.0) - 1.0, -1.0, 1.0).astype(np.float32)
+    if interface.action_kind != "mm":
+        raise UsageError("--imitate: behaviour cloning fits the mm action (--action mm)")
+    inputs, order = network_inputs(interface, demonstrations)
+    target = np.clip(demonstrations["mm"][order] / (ACTION_SCALE_MM / 2.0) - 1.0, -1.0, 1.0).astype(np.float32)
     seasons = np.unique(demonstrations["season"])
     rng = np.random.default_rng(seed)
     held = rng.choice(seasons, size=len(seasons) // 10, replace=False)
-    test = np.isin(demonstrations["season"], held)
+    test = np.isin(demonstrations["season"][order], held)
     checked = test if held.size else ~test  # fewer than 10 seasons: none held out, the error is the fit's
     policy = model.policy
     actor = list(policy.mlp_extractor.policy_net.parameters()) + list(policy.action_net.parameters())
