@@ -25,14 +25,15 @@ def one_line(error: BaseException) -> str:
 
 
 @contextmanager
-def user_input(what: str, errors: tuple[type[BaseException], ...] = (ValueError, KeyError, OSError)):
-    """Turn ``errors`` raised while reading the user's ``what`` into a UsageError naming it."""
+def user_input(what: str | None, errors: tuple[type[BaseException], ...] = (ValueError, KeyError, OSError)):
+    """Turn ``errors`` raised while reading the user's ``what`` into a UsageError naming it (None: the
+    error's message names it already)."""
     try:
         yield
     except UsageError:
         raise
     except errors as error:
-        raise UsageError(f"{what}: {one_line(error)}") from None
+        raise UsageError(one_line(error) if what is None else f"{what}: {one_line(error)}") from None
 
 
 def node_arguments(program: str, argv: list[str], usage) -> int | None:

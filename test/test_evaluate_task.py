@@ -388,3 +388,15 @@ def test_the_oracle_cache_gives_the_same_tables_and_misses_on_other_terms(evalua
     other = et.run_task(parse([*common, "--terms-seed", "7", "--no-curves", "--out", str(tmp_path / "c")]))
     assert [u["node"] for u in other["execution"]["unit_log"] if u["policy"] == "oracle"] == ["this process"] * 2
     assert len(list(cache.glob("*.json"))) == 4
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--seasons", "5..1"], "crop-sim tune-rule: --seasons: '5..1' names no season"),
+    (["--seasons", "0..1000"], "crop-sim tune-rule: --seasons: must lie within 0..999 (of each part of a mixture)"),
+    (["--seasons", "0..2", "--candidates", "0"], "crop-sim tune-rule: --candidates must be in 1..10000"),
+])
+def test_tune_rule_refuses_bad_seasons_with_one_line(arguments, message, capsys):
+    from crop_agent_ros.cli import main
+    assert main(["tune-rule", "--task", "climates-quota", *arguments]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(message), err

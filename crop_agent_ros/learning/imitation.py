@@ -88,7 +88,7 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
     if not scenario.is_family_task or scenario.weather.kind not in ("generator", "mixture"):
         raise UsageError(f"--task: demonstrations need a family task trained on generated weather; {task_name!r} "
                          f"is {'not a family task' if not scenario.is_family_task else 'on ' + scenario.weather.kind}")
-    with user_input(f"--seasons (of {task_name})", (ValueError,)):
+    with user_input(None, (ValueError,)):  # the message names --seasons
         pool_seasons = of_each_part(scenario, seasons)
     pools = continuation_pool(scenario, settings.scenarios)
     mpc = FamilyMpcPolicy(TaskConstants.of_scenario(scenario), pools, settings)
@@ -237,7 +237,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from ..policies.family_mpc import MpcSettings
     from ..policies.family_oracle import season_range
-    with user_input("--seasons", (ValueError,)):
+    with user_input(None, (ValueError,)):  # the message names --seasons
         seasons = season_range(args.seasons)
     if not (np.isfinite(args.action_noise_mm) and args.action_noise_mm >= 0):
         raise UsageError(f"--action-noise-mm: expected a number >= 0, got {args.action_noise_mm}")

@@ -48,7 +48,7 @@ def of_each_part(scenario, seasons: np.ndarray) -> np.ndarray:
     sizes = ([get_scenario(n, scenario.data_dir).n_seasons for n in scenario.weather.mixture]
              if scenario.weather.kind == "mixture" else [scenario.n_seasons])
     if len(seasons) and (seasons.min() < 0 or seasons.max() >= min(sizes)):
-        raise ValueError(f"seasons must lie within 0..{min(sizes) - 1} (of each part of a mixture)")
+        raise ValueError(f"--seasons: must lie within 0..{min(sizes) - 1} (of each part of a mixture)")
     offsets = np.cumsum([0] + sizes)
     return np.concatenate([offset + np.asarray(seasons, dtype=np.int64) for offset in offsets[:-1]])
 
@@ -178,17 +178,12 @@ def run(args) -> int:
         scenario = get_scenario(args.task)
     if not scenario.is_family_task or scenario.weather.kind not in ("generator", "mixture"):
         raise UsageError(f"--task {args.task}: the rule is tuned on a family task's generated training seasons")
-    try:
-        first, last = (int(x) for x in str(args.seasons).split(".."))
-    except ValueError:
-        raise UsageError(f"--seasons {args.seasons!r}: expected FIRST..LAST, e.g. 0..149") from None
-    pool = (scenario.n_seasons if scenario.weather.kind != "mixture"
-            else min(get_scenario(n).n_seasons for n in scenario.weather.mixture))
-    if not 0 <= first <= last < pool:
-        raise UsageError(f"--seasons {args.seasons}: must lie within 0..{pool - 1} (of each part of a mixture)")
+    from .family_oracle import season_range
+    with user_input(None, (ValueError,)):  # the messages name --seasons
+        seasons = of_each_part(scenario, season_range(str(args.seasons)))
     if not (1 <= args.candidates <= 10_000 and 0 <= args.rounds <= 50):
         raise UsageError("--candidates must be in 1..10000 and --rounds in 0..50")
-    result = tune_rule(scenario, training_seasons(scenario, first, last), args.seed, args.candidates, args.rounds)
+    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds)
     print(f"tuned {args.task}: {result['parameters']} mean return {result['mean_return']:.2f}; "
           f"wrote {write_tuned(args.task, result)}")
     return 0
