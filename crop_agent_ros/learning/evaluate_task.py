@@ -151,21 +151,11 @@ class EvaluationSet:
     seasons: np.ndarray
 
 
-def generator_sources(task) -> list:
-    """The generated-weather scenarios a task trains on: itself, or each part of its mixture."""
-    from crop_sim_ros.task.scenario import get_scenario
-    if task.weather.kind == "generator":
-        return [task]
-    if task.weather.kind == "mixture":
-        return [get_scenario(name, task.data_dir) for name in task.weather.mixture]
-    raise UsageError(f"--task: {task.name!r} does not train on generated weather (its weather is "
-                     f"{task.weather.kind!r}); the protocol evaluates tasks trained on generated seasons")
-
-
 def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[EvaluationSet]:
     """The protocol's sets for ``task`` (see the module docstring), in table order."""
-    from crop_sim_ros.task.scenario import get_scenario, reseeded, with_weather_of
-    sources = generator_sources(task)
+    from crop_sim_ros.task.scenario import generated_parts, get_scenario, reseeded, with_weather_of
+    with user_input("--task (the protocol evaluates tasks trained on generated seasons)", (ValueError,)):
+        sources = generated_parts(task)
     climates = sorted({s.weather.generator for s in sources})
     held_out_climate = ("held-out climate" if len(climates) > 1
                         else f"transfer test: trained on {climates[0]} weather only")

@@ -155,8 +155,8 @@ def network_inputs(interface, demonstrations: dict) -> tuple[np.ndarray, np.ndar
         raise UsageError(f"--imitate: season {demonstrations['season'][row]} of "
                          f"{demonstrations['files'][demonstrations['file'][row]]} does not hold consecutive days from "
                          f"day 0 (a history of {k} days needs them)")
-    rows = np.arange(len(day))
-    lagged = [scaled[order][rows - np.minimum(lag, day)] for lag in range(k - 1, -1, -1)]  # oldest first
+    rows, ordered = np.arange(len(day)), scaled[order]
+    lagged = [ordered[rows - np.minimum(lag, day)] for lag in range(k - 1, -1, -1)]  # oldest first
     return np.concatenate(lagged, axis=1), order
 
 

@@ -75,16 +75,13 @@ class MpcSettings:
 def continuation_pool(generator_scenario, scenarios: int, seed: int = POOL_SEED) -> dict[str, list[SeasonContext]]:
     """Generator name -> ``scenarios`` generated seasons of that generator with ``seed``: one entry for a
     scenario on one weather generator, one per part for a mixture (each part with its own sowing date)."""
-    from crop_sim_ros.task.scenario import get_scenario, reseeded
+    from crop_sim_ros.task.scenario import generated_parts, reseeded
     from .rollout import season_contexts
-    weather = generator_scenario.weather
-    if weather.kind == "mixture":
-        parts = [get_scenario(name, generator_scenario.data_dir) for name in weather.mixture]
-        return {name: pool for part in parts for name, pool in continuation_pool(part, scenarios, seed).items()}
-    if weather.kind != "generator":
-        raise ValueError(f"family MPC: continuations need a weather generator; {generator_scenario.name!r} has "
-                         f"{weather.kind} weather")
-    return {weather.generator: season_contexts(reseeded(generator_scenario, seed, scenarios))}
+    try:
+        parts = generated_parts(generator_scenario)
+    except ValueError as error:
+        raise ValueError(f"family MPC: continuations need a weather generator; {error}") from None
+    return {part.weather.generator: season_contexts(reseeded(part, seed, scenarios)) for part in parts}
 
 
 def climate_of(context: SeasonContext, pools: dict) -> str:

@@ -44,9 +44,8 @@ def training_seasons(scenario, first: int, last: int) -> np.ndarray:
 def of_each_part(scenario, seasons: np.ndarray) -> np.ndarray:
     """Indices into ``scenario``'s pool of ``seasons``: themselves, or for a mixture those positions of each
     part (part by part); ValueError if a position is past its part's pool."""
-    from crop_sim_ros.task.scenario import get_scenario
-    sizes = ([get_scenario(n, scenario.data_dir).n_seasons for n in scenario.weather.mixture]
-             if scenario.weather.kind == "mixture" else [scenario.n_seasons])
+    from crop_sim_ros.task.scenario import generated_parts
+    sizes = [part.n_seasons for part in generated_parts(scenario)]
     if len(seasons) and (seasons.min() < 0 or seasons.max() >= min(sizes)):
         raise ValueError(f"--seasons: must lie within 0..{min(sizes) - 1} (of each part of a mixture)")
     offsets = np.cumsum([0] + sizes)

@@ -465,6 +465,16 @@ def with_weather_of(task: Scenario, weather: Scenario) -> Scenario:
                    description=f"{task.description}; weather of {weather.name}")
 
 
+def generated_parts(task: Scenario) -> list[Scenario]:
+    """The generated-weather scenarios ``task`` draws its seasons from: itself, or each part of its mixture
+    (in pool order); ValueError for a task on other weather."""
+    if task.weather.kind == "generator":
+        return [task]
+    if task.weather.kind == "mixture":
+        return [get_scenario(name, task.data_dir) for name in task.weather.mixture]
+    raise ValueError(f"{task.name!r} does not train on generated weather (its weather is {task.weather.kind!r})")
+
+
 def reseeded(source: Scenario, seed: int, n_seasons: int) -> Scenario:
     """``source``'s weather generator with another seed and pool size (seasons no training or validation pool
     holds): far evaluation seeds, and the MPC's weather continuations."""
