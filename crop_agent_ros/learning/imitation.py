@@ -12,17 +12,19 @@ them before (optional) PPO fine-tuning on the reward.
 
 Demonstrations: the MPC runs on training seasons of the task's own pool (generated weather, the seasons the
 agents train on; never a validation or evaluation season; for a task on several climates, the same positions
-of each climate's pool, each field planning with its own climate's continuations) with the task's terms drawn per season by the
-environment (``--seed``). To show the network states off the MPC's own path (Laskey et al. 2017, DART), the
-executed amount on days the MPC irrigates is its amount plus Gaussian noise of ``--action-noise-mm`` (cut at
-0); the label is always the MPC's own amount for the state reached. With ``--behaviour POLICY.zip`` a trained
-agent acts instead and the MPC labels the states the agent reaches (one round of DAgger, Ross et al. 2011). A file holds the observations (S, 29)
-and labels (S,) mm of every live field-day, the season and day of each, and how they were made.
+of each climate's pool, each field planning with its own climate's continuations) with the task's terms drawn
+per season by the environment (``--seed``). To show the network states off the MPC's own path (Laskey et al.
+2017, DART), the executed amount on days the MPC irrigates is its amount plus Gaussian noise of
+``--action-noise-mm`` (cut at 0); the label is always the MPC's own amount for the state reached. With
+``--behaviour POLICY.zip`` a trained agent acts instead and the MPC labels the states the agent reaches (one
+round of DAgger, Ross et al. 2011). A file holds the observations (S, 29) and labels (S,) mm of every live
+field-day, the season and day of each, and how they were made.
 
 Behaviour cloning (:func:`clone`): the actor's mean action a (the network's input as the agent sees it, the
-normalised observation, or the last k of them with ``--history k``) is fitted to a* = mm / 12.5 - 1 (the agent's a in [-1, 1] -> (a + 1) / 2 x 25 mm) by
-squared error, one-sided where a* sits on a bound (a* = -1, no water: any a <= -1 is exact, since the action
-is clipped there). A tenth of the seasons is held out of the fit to report its error (mean absolute, mm).
+normalised observation, or the last k of them with ``--history k``) is fitted to a* = mm / 12.5 - 1 (the
+agent's a in [-1, 1] -> (a + 1) / 2 x 25 mm) by squared error, one-sided where a* sits on a bound (a* = -1,
+no water: any a <= -1 is exact, since the action is clipped there). A tenth of the seasons is held out of the
+fit to report its error (mean absolute, mm).
 """
 
 from __future__ import annotations
@@ -77,7 +79,8 @@ class _Recorder:
 def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: float, seed: int,
                 behaviour_path: str | None = None) -> dict:
     """The MPC's demonstrations on ``seasons`` of ``task_name``'s training pool (of each climate of a mixture:
-    its pool index is the file's ``season``; see the module docstring); with ``behaviour_path`` (a family agent's policy file of this task), on the states that agent visits."""
+    its pool index is the file's ``season``; see the module docstring); with ``behaviour_path`` (a family
+    agent's policy file of this task), on the states that agent visits."""
     from crop_sim_ros.task.scenario import get_scenario
     from ..policies.base import DAYS_SINCE_SOWING
     from ..policies.family_mpc import FamilyMpcPolicy, continuation_pool
