@@ -32,6 +32,7 @@ from __future__ import annotations
 import json
 import sys
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -83,7 +84,7 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
     agent's policy file of this task), on the states that agent visits."""
     from crop_sim_ros.task.scenario import get_scenario
     from ..policies.base import DAYS_SINCE_SOWING
-    from ..policies.family_mpc import FamilyMpcPolicy, continuation_pool
+    from ..policies.family_mpc import continuation_pool, planner
     from ..policies.family_oracle import TaskConstants
     from ..policies.rollout import run_episodes
     from ..policies.family_tuning import of_each_part
@@ -94,7 +95,7 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
     with user_input(None, (ValueError,)):  # the message names --seasons
         pool_seasons = of_each_part(scenario, seasons)
     pools = continuation_pool(scenario, settings.scenarios)
-    mpc = FamilyMpcPolicy(TaskConstants.of_scenario(scenario), pools, settings)
+    mpc = planner(TaskConstants.of_scenario(scenario), pools, settings)
     behaviour = None
     if behaviour_path is not None:
         from .agent import LearnedPolicy
@@ -109,8 +110,7 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
     return {"format": FORMAT, "task": task_name, "observations": observations,
             "mm": np.concatenate(recorder.labels), "season": pool_seasons[np.concatenate(recorder.fields)],
             "day": np.rint(observations[:, DAYS_SINCE_SOWING]).astype(np.int64), "episode_return_usd_ha": episodes.episode_return,
-            "settings": json.dumps({**mpc.describe(), "replan_first_step_mm": settings.replan_first_step_mm,
-                                    "finest_step_mm": settings.finest_step_mm, "action_noise_mm": action_noise_mm,
+            "settings": json.dumps({**mpc.describe(), **asdict(settings), "action_noise_mm": action_noise_mm,
                                     "seed": seed, "behaviour": behaviour_path, "seasons": [int(seasons.min()), int(seasons.max())],
                                     "wall_s": round(time.perf_counter() - began, 1)})}
 
@@ -223,10 +223,12 @@ def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learni
 # --- crop-sim demonstrate ----------------------------------------------------------------------------------
 
 def add_arguments(parser) -> None:
-    from ..policies.family_mpc import MpcSettings
+    from ..policies.family_mpc import METHODS, MpcSettings
     parser.add_argument("--task", required=True, help="a family task on generated weather (e.g. benton-quota)")
     parser.add_argument("--seasons", required=True, help="training-pool seasons 'A..B' (of each climate of a mixture)")
-    parser.add_argument("--scenarios", type=int, default=6, help="MPC: weather continuations per decision")
+    parser.add_argument("--method", default=METHODS[0], choices=METHODS,
+                        help="the teacher: a causal planner of crop_agent_ros.policies.family_mpc")
+    parser.add_argument("--scenarios", type=int, default=6, help="planner: weather continuations per decision")
     parser.add_argument("--decision-every-days", type=int, default=MpcSettings.decision_every_days)
     parser.add_argument("--action-noise-mm", type=float, default=1.0,
                         help="std of the noise added to the executed amount on wet days (mm)")
@@ -238,14 +240,14 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from ..policies.family_mpc import MpcSettings
+    from ..policies.family_mpc import planner_settings
     from ..policies.family_oracle import season_range
     with user_input(None, (ValueError,)):  # the message names --seasons
         seasons = season_range(args.seasons)
     if not (np.isfinite(args.action_noise_mm) and args.action_noise_mm >= 0):
         raise UsageError(f"--action-noise-mm: expected a number >= 0, got {args.action_noise_mm}")
     with user_input("--scenarios / --decision-every-days", (ValueError,)):
-        settings = MpcSettings(scenarios=args.scenarios, decision_every_days=args.decision_every_days)
+        settings = planner_settings(args.method, args.scenarios, args.decision_every_days)
     data = demonstrate(args.task, seasons, settings, args.action_noise_mm, args.seed, args.behaviour)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

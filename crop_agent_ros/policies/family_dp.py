@@ -202,23 +202,27 @@ class SeasonProgramme:
         extra = np.maximum(p["i50_max_water_degc_d"] * (1.0 - f_water) - self.heat_increment[d - 1], 0.0)
         return response[:, None] * cover[None, :], self.offsets[None, :] + extra[:, None]
 
-    def value_tables(self, prices_per_mm, rounding: bool) -> tuple[np.ndarray, list]:
+    def value_tables(self, prices_per_mm, rounding: bool, first_day: int = 0) -> tuple[np.ndarray | None, list]:
         """For M prices per mm of irrigation: the return still to come from the initial state (M,) (without
-        the initial biomass's value), and the value tables (M, nW, nO) of days 1..last growth day + 1."""
+        the initial biomass's value), and the value tables (M, nW, nO) of days 1..last growth day + 1.
+        ``first_day`` > 0: only the tables of days first_day..last growth day + 1 (the others None), and no
+        initial value (None): what a decision in mid-season needs."""
         prices = np.atleast_1d(np.asarray(prices_per_mm, dtype=float))
         event = self.problem.event_cost
         last = self.last_growth_day
-        tables: list = [None] * (last + 2)
+        tables: list = [None] * max(last + 2, first_day + 1)
         if last < 0:
             return np.zeros(len(prices)), tables
         tables[last + 1] = np.zeros((len(prices), len(self.water), len(self.offsets)))
-        for d in range(last, 0, -1):
+        for d in range(last, max(first_day, 1) - 1, -1):
             fsolar, next_offset = self._state_terms(d)
             next_w, factor, charged, wet, valid = self._choices(self.water, d, rounding)
             gain = self.value_per_kg * self.growth_scale[d] * fsolar[:, None, :] * factor[:, :, None]
             charge = prices[:, None, None] * charged[None] + event * wet[None]
             total = (gain[None] - charge[..., None]) + self._lookup(tables[d + 1], next_w, next_offset, rounding)
             tables[d] = np.where(valid[None, :, :, None], total, -np.inf).max(axis=2)
+        if first_day > 0:
+            return None, tables
         w0 = np.array([self.p["initial_paw_mm"]])
         next_w, factor, charged, wet, valid = self._choices(w0, 0, rounding)
         gain = self.value_per_kg * self.growth_scale[0] * self.p["initial_fsolar"] * factor
@@ -255,19 +259,26 @@ def upper_bound(problem, water_step_mm: float = 0.25, multipliers_per_round: int
     return BoundResult(float(values[best]), float(tried[best]), len(tried), water_step_mm)
 
 
-def _forward_plans(programme: SeasonProgramme, tables: list, prices: np.ndarray, amounts: int = 33) -> np.ndarray:
+def _forward_plans(programme: SeasonProgramme, tables: list, prices: np.ndarray, amounts: int = 33,
+                   first_day: int = 0, state=None, quota_left_mm: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For each price: the schedule that each day maximises today's reward + the interpolated value of
-    tomorrow's state, on the true model, within the capacity and the quota left. (D, M)."""
+    tomorrow's state, on the true model, within the capacity and the quota left; from ``state`` (one field's
+    :class:`CropState` at the start of ``first_day``; default: sowing) with ``quota_left_mm`` (default: the
+    quota). Returns the schedules (D, M) (0 before ``first_day``) and their returns to go (M,) at the
+    problem's own water cost (reward units: the growth's value from ``first_day`` less water and events)."""
     problem = programme.problem
     context = problem.context
     count = len(prices)
     schedules = np.zeros((problem.days, count))
     params = model.repeat_parameters(context.params, count * amounts)
-    state = model.initial_state(model.repeat_parameters(context.params, count))
-    left = np.full(count, problem.quota_mm - 1e-6 if np.isfinite(problem.quota_mm) else np.inf)
+    start = model.initial_state(context.params) if state is None else state
+    state = model.CropState(*(np.repeat(np.asarray(a), count) for a in start))
+    quota_left = problem.quota_mm if quota_left_mm is None else float(quota_left_mm)
+    left = np.full(count, quota_left - 1e-6 if np.isfinite(quota_left) else np.inf)
+    returns = np.zeros(count)
     rows = np.arange(count)
     fraction = np.linspace(0.0, 1.0, amounts)
-    for d in range(min(programme.last_growth_day + 1, problem.days)):
+    for d in range(first_day, min(programme.last_growth_day + 1, problem.days)):
         if state.mature.all():
             break
         top = np.where(state.mature, 0.0, np.minimum(programme.cap, np.maximum(left, 0.0)))
@@ -276,18 +287,19 @@ def _forward_plans(programme: SeasonProgramme, tables: list, prices: np.ndarray,
         weather = model.DailyWeather(context.tmax_degc[d], context.tmin_degc[d], context.srad_mj_m2[d],
                                  context.rain_mm[d], context.et0_mm[d])
         after, _ = model.step(params, batch, weather, choices)
-        reward = (programme.value_per_kg * (after.biomass_kg_ha - batch.biomass_kg_ha)
-                  - np.repeat(prices, amounts) * choices - problem.event_cost * (choices > 0.0)).reshape(count, amounts)
+        growth = programme.value_per_kg * (after.biomass_kg_ha - batch.biomass_kg_ha)
+        events = problem.event_cost * (choices > 0.0)
+        reward = (growth - np.repeat(prices, amounts) * choices - events).reshape(count, amounts)
         offset = (state.i50b_degc_d - programme.base_i50b[d + 1])[:, None]
         water = after.plant_available_water_mm.reshape(count, amounts)
-        later = np.stack([programme._lookup(tables[d + 1][k:k + 1], water[k:k + 1], offset[k:k + 1], False)[0, 0, :, 0]
-                          for k in range(count)])
+        later = programme._lookup(tables[d + 1], water, offset, False)[rows, rows, :, 0]  # price k's table at its own states
         best = np.argmax(reward + later, axis=1)
         pick = rows * amounts + best
         schedules[d] = choices[pick]
+        returns += (growth - problem.water_cost_per_mm * choices - events)[pick]
         left -= choices[pick]
         state = model.CropState(*(a[pick] for a in after))
-    return schedules
+    return schedules, returns
 
 
 def plan(problem, multipliers=None, water_step_mm: float = 2.0, offset_step_degc_d: float = 40.0,
@@ -300,7 +312,7 @@ def plan(problem, multipliers=None, water_step_mm: float = 2.0, offset_step_degc
                        else problem.yield_value_per_t * np.array(PLAN_MULTIPLIERS_PER_VALUE))
     prices = problem.water_cost_per_mm + np.asarray(multipliers, dtype=float)
     _, tables = programme.value_tables(prices, rounding=False)
-    return _forward_plans(programme, tables, prices)
+    return _forward_plans(programme, tables, prices)[0]
 
 
 # The plan's quota multipliers, as fractions of the yield value per t (reward units per mm per reward unit per t).

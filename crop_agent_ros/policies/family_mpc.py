@@ -37,7 +37,7 @@ import datetime
 import json
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -195,7 +195,32 @@ class FamilyMpcPolicy(BasePolicy):
                 "pools": sorted(self.pools)}
 
 
-# --- command line: the MPC on an evaluated set, beside the oracle and the rule of that evaluation ------------
+# --- the two causal planners, by name -------------------------------------------------------------------------
+
+METHODS = ("hindsight-value", "mean-plan")
+
+
+def planner_settings(method: str, scenarios: int, decision_every_days: int):
+    """The settings of planner ``method`` (a METHODS entry: ``mean-plan`` is this module's
+    :class:`FamilyMpcPolicy`, ``hindsight-value`` :mod:`crop_agent_ros.policies.family_hindsight`'s)."""
+    from .family_hindsight import HindsightSettings
+    kinds = {"mean-plan": MpcSettings, "hindsight-value": HindsightSettings}
+    if method not in kinds:
+        raise ValueError(f"--method: unknown planner {method!r}; known: {', '.join(METHODS)}")
+    return kinds[method](scenarios=scenarios, decision_every_days=decision_every_days)
+
+
+def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings) -> BasePolicy:
+    """The causal planner that ``settings`` (:class:`MpcSettings` or ``HindsightSettings``) configures."""
+    from .family_hindsight import FamilyHindsightPolicy, HindsightSettings
+    if isinstance(settings, HindsightSettings):
+        return FamilyHindsightPolicy(constants, pools, settings)
+    if isinstance(settings, MpcSettings):
+        return FamilyMpcPolicy(constants, pools, settings)
+    raise TypeError(f"family planner: settings must be MpcSettings or HindsightSettings, got {type(settings).__name__}")
+
+
+# --- command line: a planner on an evaluated set, beside the oracle and the rule of that evaluation ----------
 
 def pool_generator_of(set_name: str) -> str:
     """The weather generator whose climatology the MPC draws continuations from on an evaluation set: the
@@ -237,7 +262,7 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     terms = {name: np.asarray(values, dtype=float)[index] for name, values in entry["terms"].items()}
     generator = pool_generator_of(set_name)
     pools = continuation_pool(get_scenario(f"{generator}-generated", task.data_dir), settings.scenarios)
-    mpc = FamilyMpcPolicy(TaskConstants.of_scenario(evaluation_set.scenario), pools, settings)
+    mpc = planner(TaskConstants.of_scenario(evaluation_set.scenario), pools, settings)
     began = time.perf_counter()
     mpc_returns = run_episodes(mpc, evaluation_set.scenario, np.asarray(entry["seasons"])[index], seed=0,
                                terms=terms).episode_return
@@ -258,8 +283,7 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
         "mpc_regret_ci": list(interval(means[:, 1])),
         "mpc_over_rule": float(regrets[:, 1].mean() / regrets[:, 0].mean()), "mpc_over_rule_ci": [low, high],
         "mpc_wins_over_rule": float(np.mean(regrets[:, 1] < regrets[:, 0])),
-        "settings": {**mpc.describe(), "replan_first_step_mm": settings.replan_first_step_mm,
-                     "finest_step_mm": settings.finest_step_mm, "pool_generator": generator},
+        "settings": {**mpc.describe(), **asdict(settings), "pool_generator": generator},
         "decisions": mpc.decisions, "planning_cpu_s": round(mpc.planning_cpu_s, 1), "wall_s": round(wall_s, 1),
         "rows": rows}
     log(f"{'season':>7} {'oracle':>9} {'rule regret':>12} {'MPC regret':>11}")
@@ -280,6 +304,9 @@ def main(argv=None) -> int:
     parser.add_argument("--table", required=True, help="table.json of `crop-sim evaluate --task T`")
     parser.add_argument("--set", required=True, help="evaluation set name (e.g. heldout-real, far-benton)")
     parser.add_argument("--seasons", help="positions in the set 'A..B' (default: all)")
+    parser.add_argument("--method", default=METHODS[0], choices=METHODS,
+                        help="hindsight-value: each day the amount best on average over the continuations "
+                             "(family_hindsight); mean-plan: the mean of each continuation's best plan")
     parser.add_argument("--scenarios", type=int, default=MpcSettings.scenarios, help="continuations per decision")
     parser.add_argument("--decision-every-days", type=int, default=MpcSettings.decision_every_days)
     parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
@@ -289,7 +316,7 @@ def main(argv=None) -> int:
             table = json.load(f)
         if not isinstance(table, dict) or "sets" not in table or "task" not in table:
             raise ValueError(f"--table: {args.table} is not a table.json of `crop-sim evaluate --task`")
-        settings = MpcSettings(scenarios=args.scenarios, decision_every_days=args.decision_every_days)
+        settings = planner_settings(args.method, args.scenarios, args.decision_every_days)
         seasons = None if args.seasons is None else season_range(args.seasons)
         summary = compare_with_table(table, args.set, seasons, settings)
     except (OSError, ValueError, KeyError) as error:

@@ -1,0 +1,214 @@
+"""A causal controller for the task family that decides each day by the mean of hindsight values
+("hindsight optimisation"): one decision shared by every guess of the weather to come, not the mean of the
+guesses' own plans.
+
+:class:`crop_agent_ros.policies.family_mpc.FamilyMpcPolicy` applies the mean of the plans that are best for
+each weather continuation. Each of those plans knows its own future (when its rain falls), and their mean
+is a schedule no continuation would choose: under a binding quota it starts irrigating later than the
+hindsight oracle (measured on far Benton seasons). This controller asks another question each day: which
+amount today is best when the rest of the season may be any of the continuations?
+
+- It knows what :mod:`crop_agent_ros.policies.family_mpc` knows (SIMPLE and the crop's parameters, the
+  season's terms, the weather up to today and the water applied so far, hence the crop's exact state), and
+  draws its continuations from the same pools (:func:`crop_agent_ros.policies.family_mpc.continuation_pool`).
+- Every ``decision_every_days`` days (and at sowing) it builds, for each continuation j, the dynamic
+  programme of the rest of the season on the true weather so far followed by continuation j
+  (:class:`crop_agent_ros.policies.family_dp.SeasonProgramme`: soil water x senescence offset, with the
+  quota priced by a multiplier lambda). For each continuation it keeps the multiplier lambda_j whose plan,
+  from the crop's true state and the quota left, returns most on that continuation (each plan holds the
+  quota), and the value tables V_j of that multiplier.
+- Each day it applies, of ``amounts`` levels between 0 and the most it may apply (capacity, quota left),
+  the one that maximises today's reward on today's true weather + the mean over continuations of
+  V_j(tomorrow's state) - lambda_j x amount (lambda_j: continuation j's shadow price of the quota).
+
+What its figures mean: like the MPC's, its return is achieved by a causal controller (it reads no weather
+after the day it acts on), so oracle - its return bounds from above the least regret a causal controller can
+reach; the values V_j still know their continuation's future, so it is not optimal either.
+
+    python -m crop_agent_ros.policies.family_mpc --method hindsight-value --table T.json --set far-benton
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from crop_sim_ros import model
+from crop_sim_ros.task.layout import EXTENDED
+
+from .base import DAYS_SINCE_SOWING, BasePolicy, SeasonContext
+from .family_dp import SeasonProgramme, _forward_plans
+from .family_oracle import TaskConstants, field_problems
+
+APPLIED_YESTERDAY = EXTENDED.index("irrigation_yesterday_mm")
+
+
+@dataclass(frozen=True)
+class HindsightSettings:
+    """``scenarios``: weather continuations; ``decision_every_days``: days between new value tables;
+    ``water_step_mm`` / ``offset_step_degc_d``: the programme's grids (soil water, mm; senescence offset,
+    degC d); ``amounts``: levels of water tried each day (0 .. the most allowed); ``multipliers_per_value``:
+    the quota's multipliers tried first, as fractions of the yield value per t (reward units per mm per reward
+    unit per t ha-1); ``refined_multipliers``: how many more are tried, evenly between the best first one's
+    neighbours (the quota's price must be precise: with the true weather as the only continuation, on two
+    seasons with a 250 mm quota, the 7 first multipliers alone leave 1.5-1.9 % of the oracle's return, with
+    10 refined 0.1-0.2 %)."""
+
+    scenarios: int = 8
+    decision_every_days: int = 7
+    water_step_mm: float = 2.0
+    offset_step_degc_d: float = 80.0
+    amounts: int = 33
+    multipliers_per_value: tuple = (0.0, 0.005, 0.01, 0.015, 0.02, 0.03, 0.05)
+    refined_multipliers: int = 10
+
+    def __post_init__(self) -> None:
+        if int(self.scenarios) < 1 or int(self.decision_every_days) < 1 or int(self.amounts) < 2:
+            raise ValueError(f"family hindsight: scenarios and decision_every_days must be >= 1 and amounts >= 2, "
+                             f"got {self.scenarios}, {self.decision_every_days} and {self.amounts}")
+        if not (self.water_step_mm > 0 and self.offset_step_degc_d > 0):
+            raise ValueError(f"family hindsight: the grid steps must be > 0, got {self.water_step_mm} mm and "
+                             f"{self.offset_step_degc_d} degC d")
+        if not self.multipliers_per_value or min(self.multipliers_per_value) < 0 or int(self.refined_multipliers) < 0:
+            raise ValueError(f"family hindsight: multipliers_per_value must be >= 0 and not empty, and "
+                             f"refined_multipliers >= 0, got {self.multipliers_per_value} and {self.refined_multipliers}")
+
+
+@dataclass
+class _Guess:
+    """One continuation's programme, its chosen multiplier (reward units per mm) and its value tables
+    (1, nW, nO) by day (None where not needed)."""
+
+    programme: SeasonProgramme
+    multiplier: float
+    tables: list
+
+
+class FamilyHindsightPolicy(BasePolicy):
+    """The module docstring's controller; :meth:`begin_season` as :class:`FamilyMpcPolicy`'s."""
+
+    name = "family-hindsight"
+    observation_sizes = (EXTENDED.size,)
+
+    def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]],
+                 settings: HindsightSettings = HindsightSettings()):
+        if not pools or min(len(pool) for pool in pools.values()) < settings.scenarios:
+            raise ValueError(f"family hindsight: {settings.scenarios} scenarios need as many seasons in every "
+                             f"pool, got { {name: len(pool) for name, pool in pools.items()} }")
+        self.constants = constants
+        self.pools = {name: list(pool[:settings.scenarios]) for name, pool in pools.items()}
+        self.settings = settings
+        self.contexts: list[SeasonContext] = []
+        self.decisions = 0
+        self.planning_cpu_s = 0.0
+
+    def begin_season(self, context) -> None:
+        from .family_mpc import climate_of
+        self.contexts = list(context) if isinstance(context, (list, tuple)) else [context]
+        self.problems = field_problems(self.contexts, self.constants)
+        self.field_pools = [self.pools[climate_of(c, self.pools)] for c in self.contexts]
+        n = len(self.contexts)
+        self.states = [model.initial_state(c.params) for c in self.contexts]
+        self.applied = [np.zeros(len(c.rain_mm)) for c in self.contexts]
+        self.guesses: list[list[_Guess]] = [[] for _ in range(n)]
+        self.last_day = np.full(n, -1)
+        self.done = np.zeros(n, dtype=bool)
+
+    def _weather(self, context: SeasonContext, day: int) -> model.DailyWeather:
+        return model.DailyWeather(context.tmax_degc[day], context.tmin_degc[day], context.srad_mj_m2[day],
+                                  context.rain_mm[day], context.et0_mm[day])
+
+    def _quota_left_mm(self, i: int, day: int) -> float:
+        return self.problems[i].quota_mm - float(self.applied[i][:day].sum())
+
+    def _replan(self, i: int, day: int) -> None:
+        from .family_mpc import spliced
+        began = time.process_time()
+        s = self.settings
+        truth = self.problems[i]
+        first = truth.yield_value_per_t * np.asarray(sorted(s.multipliers_per_value), dtype=float)
+        if not np.isfinite(truth.quota_mm):
+            first = np.zeros(1)
+        keep_until = day + s.decision_every_days + 1  # the tables the days to the next decision read
+        guesses = []
+        for continuation in self.field_pools[i]:
+            problem = replace(truth, context=spliced(truth.context, continuation, day + 1))
+            programme = SeasonProgramme(problem, s.water_step_mm, s.offset_step_degc_d)
+            best = self._best_multiplier(programme, i, day, first, keep_until)
+            if len(first) > 1 and s.refined_multipliers:
+                k = int(np.searchsorted(first, best[0]))
+                between = np.linspace(first[max(k - 1, 0)], first[min(k + 1, len(first) - 1)],
+                                      s.refined_multipliers + 2)[1:-1]
+                best = max(best, self._best_multiplier(programme, i, day, between, keep_until), key=lambda b: b[1])
+            guesses.append(_Guess(programme, best[0], best[2]))
+        self.guesses[i] = guesses
+        self.decisions += 1
+        self.planning_cpu_s += time.process_time() - began
+
+    def _best_multiplier(self, programme: SeasonProgramme, i: int, day: int, multipliers: np.ndarray,
+                         keep_until: int) -> tuple[float, float, list]:
+        """Of ``multipliers``, the one whose plan from field ``i``'s state on ``day`` returns most on the
+        programme's weather: (multiplier, return to go, its tables of days up to ``keep_until``)."""
+        prices = self.problems[i].water_cost_per_mm + multipliers
+        _, tables = programme.value_tables(prices, rounding=False, first_day=day + 1)
+        _, returns = _forward_plans(programme, tables, prices, self.settings.amounts, first_day=day,
+                                    state=self.states[i], quota_left_mm=self._quota_left_mm(i, day))
+        best = int(np.argmax(returns))
+        return (float(multipliers[best]), float(returns[best]),
+                [t[best:best + 1] if (t is not None and d <= keep_until) else None for d, t in enumerate(tables)])
+
+    def _decide(self, i: int, day: int) -> float:
+        """Today's amount (mm) of field ``i``: the module docstring's daily choice."""
+        state, problem, context = self.states[i], self.problems[i], self.contexts[i]
+        if bool(state.mature[0]):
+            return 0.0
+        top = max(min(problem.capacity_mm_per_day, self._quota_left_mm(i, day) - 1e-6), 0.0)
+        amounts = top * np.linspace(0.0, 1.0, self.settings.amounts)
+        n = len(amounts)
+        batch = model.CropState(*(np.repeat(a, n) for a in state))
+        after, _ = model.step(model.repeat_parameters(context.params, n), batch, self._weather(context, day), amounts)
+        score = (self.guesses[i][0].programme.value_per_kg * (after.biomass_kg_ha - batch.biomass_kg_ha)
+                 - problem.water_cost_per_mm * amounts - problem.event_cost * (amounts > 0.0))
+        later = np.zeros(n)
+        for guess in self.guesses[i]:
+            later -= guess.multiplier * amounts
+            if day + 1 < len(guess.tables) and guess.tables[day + 1] is not None:
+                offset = (state.i50b_degc_d - guess.programme.base_i50b[day + 1])[:, None]
+                later += guess.programme._lookup(guess.tables[day + 1], after.plant_available_water_mm[None, :],
+                                                 offset, False)[0, 0, :, 0]
+        return float(amounts[int(np.argmax(score + later / len(self.guesses[i])))])
+
+    def _act_batch(self, obs):
+        if not self.contexts or len(self.contexts) != len(obs):
+            raise ValueError(f"family hindsight: begin_season with one context per field first "
+                             f"({len(self.contexts)} contexts for {len(obs)} observations)")
+        days = np.rint(obs[:, DAYS_SINCE_SOWING]).astype(int)
+        self.done |= days < self.last_day  # a field that restarted (its episode ended) is not planned again
+        out = np.zeros(len(obs))
+        for i in np.flatnonzero(~self.done):
+            day, context = int(days[i]), self.contexts[i]
+            if day >= len(self.applied[i]):
+                continue
+            if day != self.last_day[i] + 1:
+                raise ValueError(f"family hindsight: field {i} is on day {day} after day {self.last_day[i]}; "
+                                 f"it follows a season day by day from sowing")
+            if day > 0:  # yesterday: the water the environment applied, on yesterday's true weather
+                self.applied[i][day - 1] = obs[i, APPLIED_YESTERDAY]
+                self.states[i], _ = model.step(context.params, self.states[i], self._weather(context, day - 1),
+                                               self.applied[i][day - 1:day])
+            self.last_day[i] = day
+            if day % self.settings.decision_every_days == 0 or not self.guesses[i]:
+                self._replan(i, day)
+            out[i] = self._decide(i, day)
+        return out
+
+    def describe(self):
+        from .family_mpc import POOL_SEED
+        return {"name": self.name, "scenarios": self.settings.scenarios,
+                "decision_every_days": self.settings.decision_every_days, "pool_seed": POOL_SEED,
+                "pools": sorted(self.pools), "water_step_mm": self.settings.water_step_mm,
+                "offset_step_degc_d": self.settings.offset_step_degc_d, "amounts": self.settings.amounts,
+                "multipliers_per_value": list(self.settings.multipliers_per_value),
+                "refined_multipliers": self.settings.refined_multipliers}
