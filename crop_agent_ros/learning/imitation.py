@@ -1,16 +1,19 @@
-"""Learning from the causal MPC: its demonstrations, and behaviour cloning of a family agent's network.
+"""Learning from a causal planner (the "MPC" below): its demonstrations, and behaviour cloning of a family
+agent's network.
 
-The causal MPC (:mod:`crop_agent_ros.policies.family_mpc`) irrigates better than the tuned rules, but it
-plans with SIMPLE on every decision (seconds of CPU per field and decision). A network that imitates it acts
+The causal planners (:mod:`crop_agent_ros.policies.family_mpc`, :mod:`crop_agent_ros.policies.family_hindsight`)
+irrigate better than the tuned rules, but they plan with SIMPLE on every decision (seconds of CPU per field
+and decision). A network that imitates it acts
 in microseconds and reads only the observation. This is the **imitation variant** of the family agents (not
 the headline agent, which learns from the reward alone): ``crop-sim demonstrate`` records the MPC's actions on
 generated training seasons, and ``crop-sim train --task T --imitate FILES`` fits the PPO network's policy to
 them before (optional) PPO fine-tuning on the reward.
 
-    crop-sim demonstrate --task benton-quota --seasons 0..99 [--scenarios 6] [--decision-every-days 7]
-        [--action-noise-mm 1.0] [--seed 0] --out demos/benton-quota-0.npz
+    crop-sim demonstrate --task benton-quota --seasons 0..99 [--method hindsight-value|mean-plan] [--scenarios K]
+        [--decision-every-days 7] [--action-noise-mm 1.0] [--seed 0] --out demos/benton-quota-0.npz
 
-Demonstrations: the MPC runs on training seasons of the task's own pool (generated weather, the seasons the
+Demonstrations: the planner (by default the hindsight-value one; the MPC of earlier runs with ``--method
+mean-plan``) runs on training seasons of the task's own pool (generated weather, the seasons the
 agents train on; never a validation or evaluation season; for a task on several climates, the same positions
 of each climate's pool, each field planning with its own climate's continuations) with the task's terms drawn
 per season by the environment (``--seed``). To show the network states off the MPC's own path (Laskey et al.
@@ -223,13 +226,14 @@ def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learni
 # --- crop-sim demonstrate ----------------------------------------------------------------------------------
 
 def add_arguments(parser) -> None:
-    from ..policies.family_mpc import METHODS, MpcSettings
+    from ..policies.family_mpc import METHODS
     parser.add_argument("--task", required=True, help="a family task on generated weather (e.g. benton-quota)")
     parser.add_argument("--seasons", required=True, help="training-pool seasons 'A..B' (of each climate of a mixture)")
     parser.add_argument("--method", default=METHODS[0], choices=METHODS,
                         help="the teacher: a causal planner of crop_agent_ros.policies.family_mpc")
-    parser.add_argument("--scenarios", type=int, default=6, help="planner: weather continuations per decision")
-    parser.add_argument("--decision-every-days", type=int, default=MpcSettings.decision_every_days)
+    parser.add_argument("--scenarios", type=int, help="planner: weather continuations per decision (default: the "
+                                                       "planner's, 4 for hindsight-value, 8 for mean-plan)")
+    parser.add_argument("--decision-every-days", type=int, help="planner: days between decisions (default: 7)")
     parser.add_argument("--action-noise-mm", type=float, default=1.0,
                         help="std of the noise added to the executed amount on wet days (mm)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the terms, the noise and the sensor noise")

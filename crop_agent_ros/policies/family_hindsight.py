@@ -56,7 +56,7 @@ class HindsightSettings:
     seasons with a 250 mm quota, the 7 first multipliers alone leave 1.5-1.9 % of the oracle's return, with
     10 refined 0.1-0.2 %)."""
 
-    scenarios: int = 8
+    scenarios: int = 4
     decision_every_days: int = 7
     water_step_mm: float = 2.0
     offset_step_degc_d: float = 80.0

@@ -26,8 +26,14 @@ checks that its actions do not depend on the weather after the day they are take
 is a measured **upper bound on the least regret a causal controller can reach**. It is not a lower bound:
 a better controller (more continuations, conditioning on the forecast, daily decisions) may do better.
 
-    python -m crop_agent_ros.policies.family_mpc --table results/family/benton-quota/table.json \\
-        --set heldout-real [--seasons 0..4] [--scenarios 8] [--decision-every-days 7] [--out FILE.json]
+This mean of plans (``mean-plan``) is one of two planners (:data:`METHODS`); the other, ``hindsight-value``
+(:mod:`crop_agent_ros.policies.family_hindsight`), shares one decision a day across the continuations and
+removes more of the rule's regret. :func:`planner` builds either from its settings; the command line runs
+either on a set of an evaluation, beside that evaluation's oracle and rule:
+
+    python -m crop_agent_ros.policies.family_mpc [--method hindsight-value|mean-plan] \\
+        --table results/family/benton-quota/table.json --set heldout-real [--seasons 0..4] [--scenarios K] \\
+        [--decision-every-days 7] [--out FILE.json]
 """
 
 from __future__ import annotations
@@ -200,14 +206,16 @@ class FamilyMpcPolicy(BasePolicy):
 METHODS = ("hindsight-value", "mean-plan")
 
 
-def planner_settings(method: str, scenarios: int, decision_every_days: int):
+def planner_settings(method: str, scenarios: int | None = None, decision_every_days: int | None = None):
     """The settings of planner ``method`` (a METHODS entry: ``mean-plan`` is this module's
-    :class:`FamilyMpcPolicy`, ``hindsight-value`` :mod:`crop_agent_ros.policies.family_hindsight`'s)."""
+    :class:`FamilyMpcPolicy`, ``hindsight-value`` :mod:`crop_agent_ros.policies.family_hindsight`'s), with
+    the planner's defaults where an argument is None."""
     from .family_hindsight import HindsightSettings
     kinds = {"mean-plan": MpcSettings, "hindsight-value": HindsightSettings}
     if method not in kinds:
         raise ValueError(f"--method: unknown planner {method!r}; known: {', '.join(METHODS)}")
-    return kinds[method](scenarios=scenarios, decision_every_days=decision_every_days)
+    given = {"scenarios": scenarios, "decision_every_days": decision_every_days}
+    return kinds[method](**{name: value for name, value in given.items() if value is not None})
 
 
 def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings) -> BasePolicy:
@@ -307,8 +315,8 @@ def main(argv=None) -> int:
     parser.add_argument("--method", default=METHODS[0], choices=METHODS,
                         help="hindsight-value: each day the amount best on average over the continuations "
                              "(family_hindsight); mean-plan: the mean of each continuation's best plan")
-    parser.add_argument("--scenarios", type=int, default=MpcSettings.scenarios, help="continuations per decision")
-    parser.add_argument("--decision-every-days", type=int, default=MpcSettings.decision_every_days)
+    parser.add_argument("--scenarios", type=int, help="continuations per decision (default: the planner's, 4 or 8)")
+    parser.add_argument("--decision-every-days", type=int, help="days between decisions (default: 7)")
     parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
     args = parser.parse_args(argv)
     try:
