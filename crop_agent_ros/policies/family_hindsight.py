@@ -16,7 +16,8 @@ amount today is best when the rest of the season may be any of the continuations
   (:class:`crop_agent_ros.policies.family_dp.SeasonProgramme`: soil water x senescence offset, with the
   quota priced by a multiplier lambda). For each continuation it keeps the multiplier lambda_j whose plan,
   from the crop's true state and the quota left, returns most on that continuation (each plan holds the
-  quota), and the value tables V_j of that multiplier.
+  quota; a first grid of multipliers, then a finer one between the best's neighbours, searched on coarser
+  programmes), and the value tables V_j of that multiplier.
 - Each day it applies, of ``amounts`` levels between 0 and the most it may apply (capacity, quota left),
   the one that maximises today's reward on today's true weather + the mean over continuations of
   V_j(tomorrow's state) - lambda_j x amount (lambda_j: continuation j's shadow price of the quota).
@@ -54,7 +55,9 @@ class HindsightSettings:
     unit per t ha-1); ``refined_multipliers``: how many more are tried, evenly between the best first one's
     neighbours (the quota's price must be precise: with the true weather as the only continuation, on two
     seasons with a 250 mm quota, the 7 first multipliers alone leave 1.5-1.9 % of the oracle's return, with
-    10 refined 0.1-0.2 %)."""
+    10 refined 0.1-0.2 %). ``search_water_step_mm`` / ``search_offset_step_degc_d``: the grids of the
+    programmes that choose the multiplier (coarser and cheaper: only the chosen multiplier's tables are
+    built on the fine grids; None: the fine grids throughout)."""
 
     scenarios: int = 4
     decision_every_days: int = 7
@@ -63,14 +66,18 @@ class HindsightSettings:
     amounts: int = 33
     multipliers_per_value: tuple = (0.0, 0.005, 0.01, 0.015, 0.02, 0.03, 0.05)
     refined_multipliers: int = 10
+    search_water_step_mm: float | None = 4.0
+    search_offset_step_degc_d: float = 80.0
 
     def __post_init__(self) -> None:
         if int(self.scenarios) < 1 or int(self.decision_every_days) < 1 or int(self.amounts) < 2:
             raise ValueError(f"family hindsight: scenarios and decision_every_days must be >= 1 and amounts >= 2, "
                              f"got {self.scenarios}, {self.decision_every_days} and {self.amounts}")
-        if not (self.water_step_mm > 0 and self.offset_step_degc_d > 0):
+        search = (1.0, 1.0) if self.search_water_step_mm is None else (self.search_water_step_mm,
+                                                                       self.search_offset_step_degc_d)
+        if not (self.water_step_mm > 0 and self.offset_step_degc_d > 0 and min(search) > 0):
             raise ValueError(f"family hindsight: the grid steps must be > 0, got {self.water_step_mm} mm and "
-                             f"{self.offset_step_degc_d} degC d")
+                             f"{self.offset_step_degc_d} degC d (search: {search[0]} mm, {search[1]} degC d)")
         if not self.multipliers_per_value or min(self.multipliers_per_value) < 0 or int(self.refined_multipliers) < 0:
             raise ValueError(f"family hindsight: multipliers_per_value must be >= 0 and not empty, and "
                              f"refined_multipliers >= 0, got {self.multipliers_per_value} and {self.refined_multipliers}")
@@ -84,6 +91,12 @@ class _Guess:
     programme: SeasonProgramme
     multiplier: float
     tables: list
+
+
+def _kept(tables: list, last_day: int) -> list:
+    """The value tables of days up to ``last_day`` (the others None: a field keeps only what it reads before
+    its next decision)."""
+    return [t if d <= last_day else None for d, t in enumerate(tables)]
 
 
 class FamilyHindsightPolicy(BasePolicy):
@@ -136,28 +149,33 @@ class FamilyHindsightPolicy(BasePolicy):
         for continuation in self.field_pools[i]:
             problem = replace(truth, context=spliced(truth.context, continuation, day + 1))
             programme = SeasonProgramme(problem, s.water_step_mm, s.offset_step_degc_d)
-            best = self._best_multiplier(programme, i, day, first, keep_until)
+            search = programme if s.search_water_step_mm is None else SeasonProgramme(
+                problem, s.search_water_step_mm, s.search_offset_step_degc_d)
+            best = self._best_multiplier(search, i, day, first)
             if len(first) > 1 and s.refined_multipliers:
                 k = int(np.searchsorted(first, best[0]))
                 between = np.linspace(first[max(k - 1, 0)], first[min(k + 1, len(first) - 1)],
                                       s.refined_multipliers + 2)[1:-1]
-                best = max(best, self._best_multiplier(programme, i, day, between, keep_until), key=lambda b: b[1])
-            guesses.append(_Guess(programme, best[0], best[2]))
+                best = max(best, self._best_multiplier(search, i, day, between), key=lambda b: b[1])
+            tables = best[2]
+            if search is not programme:  # the chosen multiplier's tables on the fine grids
+                _, tables = programme.value_tables([truth.water_cost_per_mm + best[0]], rounding=False,
+                                                   first_day=day + 1)
+            guesses.append(_Guess(programme, best[0], _kept(tables, keep_until)))
         self.guesses[i] = guesses
         self.decisions += 1
         self.planning_cpu_s += time.process_time() - began
 
-    def _best_multiplier(self, programme: SeasonProgramme, i: int, day: int, multipliers: np.ndarray,
-                         keep_until: int) -> tuple[float, float, list]:
+    def _best_multiplier(self, programme: SeasonProgramme, i: int, day: int,
+                         multipliers: np.ndarray) -> tuple[float, float, list]:
         """Of ``multipliers``, the one whose plan from field ``i``'s state on ``day`` returns most on the
-        programme's weather: (multiplier, return to go, its tables of days up to ``keep_until``)."""
+        programme's weather: (multiplier, return to go, its value tables)."""
         prices = self.problems[i].water_cost_per_mm + multipliers
         _, tables = programme.value_tables(prices, rounding=False, first_day=day + 1)
         _, returns = _forward_plans(programme, tables, prices, self.settings.amounts, first_day=day,
                                     state=self.states[i], quota_left_mm=self._quota_left_mm(i, day))
         best = int(np.argmax(returns))
-        return (float(multipliers[best]), float(returns[best]),
-                [t[best:best + 1] if (t is not None and d <= keep_until) else None for d, t in enumerate(tables)])
+        return float(multipliers[best]), float(returns[best]), [None if t is None else t[best:best + 1] for t in tables]
 
     def _decide(self, i: int, day: int) -> float:
         """Today's amount (mm) of field ``i``: the module docstring's daily choice."""
@@ -211,4 +229,6 @@ class FamilyHindsightPolicy(BasePolicy):
                 "pools": sorted(self.pools), "water_step_mm": self.settings.water_step_mm,
                 "offset_step_degc_d": self.settings.offset_step_degc_d, "amounts": self.settings.amounts,
                 "multipliers_per_value": list(self.settings.multipliers_per_value),
-                "refined_multipliers": self.settings.refined_multipliers}
+                "refined_multipliers": self.settings.refined_multipliers,
+                "search_water_step_mm": self.settings.search_water_step_mm,
+                "search_offset_step_degc_d": self.settings.search_offset_step_degc_d}
