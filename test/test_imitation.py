@@ -40,6 +40,21 @@ def test_demonstrations_are_the_mpcs_own_actions_on_live_days(demonstrations):
     assert np.all(demonstrations["season"] == 5) and demonstrations["mm"].sum() > 50.0
 
 
+def test_the_hindsight_planner_demonstrates_its_own_actions():
+    from crop_agent_ros.policies.family_hindsight import HindsightSettings
+    cheap = HindsightSettings(scenarios=1, decision_every_days=30, water_step_mm=4.0, offset_step_degc_d=80.0,
+                              amounts=9, refined_multipliers=2)
+    data = imitation.demonstrate("benton-quota", np.array([5]), cheap, action_noise_mm=0.0, seed=2)
+    scenario = get_scenario("benton-quota")
+    planner = fm.planner(TaskConstants.of_scenario(scenario), fm.continuation_pool(scenario, 1), cheap)
+    episodes = run_episodes(planner, scenario, np.array([5]), seed=2, record=True)
+    days = int(episodes.days[0])
+    np.testing.assert_array_equal(data["mm"], episodes.daily["irrigation_mm"][:days, 0])
+    settings = json.loads(str(data["settings"]))
+    assert settings["name"] == "family-hindsight" and settings["refined_multipliers"] == 2
+    assert data["mm"].sum() > 50.0
+
+
 def test_the_recorder_perturbs_what_is_executed_not_the_label():
     class FakeMpc:
         live = np.array([True, True, False])

@@ -205,10 +205,12 @@ class FamilyHindsightPolicy(BasePolicy):
         days = np.rint(obs[:, DAYS_SINCE_SOWING]).astype(int)
         self.done |= days < self.last_day  # a field that restarted (its episode ended) is not planned again
         out = np.zeros(len(obs))
+        self.live = np.zeros(len(obs), dtype=bool)  # the fields acted on (what a recorder of its labels keeps)
         for i in np.flatnonzero(~self.done):
             day, context = int(days[i]), self.contexts[i]
             if day >= len(self.applied[i]):
                 continue
+            self.live[i] = True
             if day != self.last_day[i] + 1:
                 raise ValueError(f"family hindsight: field {i} is on day {day} after day {self.last_day[i]}; "
                                  f"it follows a season day by day from sowing")
