@@ -37,13 +37,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from crop_sim_ros import model
-from crop_sim_ros.task.layout import EXTENDED
 
-from .base import DAYS_SINCE_SOWING, BasePolicy, SeasonContext
+from .base import DAYS_SINCE_SOWING, SeasonContext
 from .family_dp import SeasonProgramme, _forward_plans
-from .family_oracle import TaskConstants, field_problems
-
-APPLIED_YESTERDAY = EXTENDED.index("irrigation_yesterday_mm")
+from .family_mpc import APPLIED_YESTERDAY, POOL_SEED, ContinuationPlanner, spliced
+from .family_oracle import TaskConstants
 
 
 @dataclass(frozen=True)
@@ -99,35 +97,21 @@ def _kept(tables: list, last_day: int) -> list:
     return [t if d <= last_day else None for d, t in enumerate(tables)]
 
 
-class FamilyHindsightPolicy(BasePolicy):
-    """The module docstring's controller; :meth:`begin_season` as :class:`FamilyMpcPolicy`'s."""
+class FamilyHindsightPolicy(ContinuationPlanner):
+    """The module docstring's controller; :meth:`begin_season` as :class:`ContinuationPlanner`'s. It follows
+    each field's crop state by stepping SIMPLE on the true weather of each day past with the water the
+    environment applied (``irrigation_yesterday_mm`` of the observation)."""
 
     name = "family-hindsight"
-    observation_sizes = (EXTENDED.size,)
 
     def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]],
                  settings: HindsightSettings = HindsightSettings()):
-        if not pools or min(len(pool) for pool in pools.values()) < settings.scenarios:
-            raise ValueError(f"family hindsight: {settings.scenarios} scenarios need as many seasons in every "
-                             f"pool, got { {name: len(pool) for name, pool in pools.items()} }")
-        self.constants = constants
-        self.pools = {name: list(pool[:settings.scenarios]) for name, pool in pools.items()}
-        self.settings = settings
-        self.contexts: list[SeasonContext] = []
-        self.decisions = 0
-        self.planning_cpu_s = 0.0
+        super().__init__(constants, pools, settings)
 
     def begin_season(self, context) -> None:
-        from .family_mpc import climate_of
-        self.contexts = list(context) if isinstance(context, (list, tuple)) else [context]
-        self.problems = field_problems(self.contexts, self.constants)
-        self.field_pools = [self.pools[climate_of(c, self.pools)] for c in self.contexts]
-        n = len(self.contexts)
+        super().begin_season(context)
         self.states = [model.initial_state(c.params) for c in self.contexts]
-        self.applied = [np.zeros(len(c.rain_mm)) for c in self.contexts]
-        self.guesses: list[list[_Guess]] = [[] for _ in range(n)]
-        self.last_day = np.full(n, -1)
-        self.done = np.zeros(n, dtype=bool)
+        self.guesses: list[list[_Guess]] = [[] for _ in self.contexts]
 
     def _weather(self, context: SeasonContext, day: int) -> model.DailyWeather:
         return model.DailyWeather(context.tmax_degc[day], context.tmin_degc[day], context.srad_mj_m2[day],
@@ -137,7 +121,6 @@ class FamilyHindsightPolicy(BasePolicy):
         return self.problems[i].quota_mm - float(self.applied[i][:day].sum())
 
     def _replan(self, i: int, day: int) -> None:
-        from .family_mpc import spliced
         began = time.process_time()
         s = self.settings
         truth = self.problems[i]
@@ -199,9 +182,7 @@ class FamilyHindsightPolicy(BasePolicy):
         return float(amounts[int(np.argmax(score + later / len(self.guesses[i])))])
 
     def _act_batch(self, obs):
-        if not self.contexts or len(self.contexts) != len(obs):
-            raise ValueError(f"family hindsight: begin_season with one context per field first "
-                             f"({len(self.contexts)} contexts for {len(obs)} observations)")
+        self._check_batch(obs)
         days = np.rint(obs[:, DAYS_SINCE_SOWING]).astype(int)
         self.done |= days < self.last_day  # a field that restarted (its episode ended) is not planned again
         out = np.zeros(len(obs))
@@ -225,7 +206,6 @@ class FamilyHindsightPolicy(BasePolicy):
         return out
 
     def describe(self):
-        from .family_mpc import POOL_SEED
         return {"name": self.name, "scenarios": self.settings.scenarios,
                 "decision_every_days": self.settings.decision_every_days, "pool_seed": POOL_SEED,
                 "pools": sorted(self.pools), "water_step_mm": self.settings.water_step_mm,

@@ -119,18 +119,18 @@ def spliced(truth: SeasonContext, continuation: SeasonContext, known_days: int) 
     return replace(truth, name=f"{truth.name}|{continuation.name}@{known_days}", **series)
 
 
-class FamilyMpcPolicy(BasePolicy):
-    """The module docstring's controller. :meth:`begin_season` takes one :class:`SeasonContext` per field
-    with its episode terms (as :func:`crop_agent_ros.policies.rollout.run_episodes` gives them); the policy
-    reads a field's weather only up to the day it acts on (``days_since_sowing`` of the observation)."""
+class ContinuationPlanner(BasePolicy):
+    """What the causal planners share: the first ``settings.scenarios`` seasons of each continuation pool, and
+    for a season (:meth:`begin_season`: one :class:`SeasonContext` per field with its episode terms, as
+    :func:`crop_agent_ros.policies.rollout.run_episodes` gives them) each field's problem, its climate's pool,
+    the water applied so far (mm per day) and whether its episode is over. After each act, ``live`` marks the
+    fields acted on (what a recorder of the planner's labels keeps)."""
 
-    name = "family-mpc"
     observation_sizes = (EXTENDED.size,)
 
-    def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]],
-                 settings: MpcSettings = MpcSettings()):
+    def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings):
         if not pools or min(len(pool) for pool in pools.values()) < settings.scenarios:
-            raise ValueError(f"family MPC: {settings.scenarios} scenarios need as many seasons in every pool, got "
+            raise ValueError(f"{self.name}: {settings.scenarios} scenarios need as many seasons in every pool, got "
                              f"{ {name: len(pool) for name, pool in pools.items()} }")
         self.constants = constants
         self.pools = {name: list(pool[:settings.scenarios]) for name, pool in pools.items()}
@@ -143,12 +143,31 @@ class FamilyMpcPolicy(BasePolicy):
         self.contexts = list(context) if isinstance(context, (list, tuple)) else [context]
         self.problems = field_problems(self.contexts, self.constants)
         self.field_pools = [self.pools[climate_of(c, self.pools)] for c in self.contexts]
-        n, k = len(self.contexts), self.settings.scenarios
         self.applied = [np.zeros(len(c.rain_mm)) for c in self.contexts]
+        self.last_day = np.full(len(self.contexts), -1)
+        self.done = np.zeros(len(self.contexts), dtype=bool)
+
+    def _check_batch(self, obs) -> None:
+        if not self.contexts or len(self.contexts) != len(obs):
+            raise ValueError(f"{self.name}: begin_season with one context per field first ({len(self.contexts)} "
+                             f"contexts for {len(obs)} observations)")
+
+
+class FamilyMpcPolicy(ContinuationPlanner):
+    """The module docstring's controller; the policy reads a field's weather only up to the day it acts on
+    (``days_since_sowing`` of the observation)."""
+
+    name = "family-mpc"
+
+    def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]],
+                 settings: MpcSettings = MpcSettings()):
+        super().__init__(constants, pools, settings)
+
+    def begin_season(self, context) -> None:
+        super().begin_season(context)
+        n, k = len(self.contexts), self.settings.scenarios
         self.plans = [[None] * k for _ in range(n)]
         self.block = [np.zeros(len(c.rain_mm)) for c in self.contexts]
-        self.last_day = np.full(n, -1)
-        self.done = np.zeros(n, dtype=bool)
 
     def _replan(self, fields: list[int], day: int) -> None:
         began = time.process_time()
@@ -176,9 +195,7 @@ class FamilyMpcPolicy(BasePolicy):
         self.planning_cpu_s += time.process_time() - began
 
     def _act_batch(self, obs):
-        if not self.contexts or len(self.contexts) != len(obs):
-            raise ValueError(f"family MPC: begin_season with one context per field first ({len(self.contexts)} "
-                             f"contexts for {len(obs)} observations)")
+        self._check_batch(obs)
         days = np.rint(obs[:, DAYS_SINCE_SOWING]).astype(int)
         self.done |= days < self.last_day  # a field that restarted (its episode ended) is not planned again
         for i in np.flatnonzero(~self.done & (days > 0)):
