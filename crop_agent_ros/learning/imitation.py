@@ -256,7 +256,7 @@ def run(args) -> int:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out, **data)
-    actor = "the behaviour policy" if args.behaviour else "the MPC with its noise"
+    actor = "the behaviour policy" if args.behaviour else "the planner with its noise"
     print(f"{len(data['mm'])} field-days of {len(np.unique(data['season']))} seasons -> {out}; return of {actor} "
           f"{data['episode_return_usd_ha'].mean():,.0f} USD/ha; {json.loads(data['settings'])['wall_s']} s")
     return 0

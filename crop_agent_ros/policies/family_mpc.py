@@ -265,11 +265,12 @@ def _bootstrap_mean(values: np.ndarray, rng: np.random.Generator, resamples: int
     return values[picks].mean(axis=1)
 
 
-def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, settings: MpcSettings,
+def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, settings,
                        resamples: int = 2000, log=print) -> dict:
-    """Run the MPC on ``set_name`` of an evaluation ``table`` (``crop-sim evaluate --task``'s table.json) with
+    """Run a planner (``settings``: :class:`MpcSettings` or ``HindsightSettings``; the summary's keys say
+    ``mpc`` for either) on ``set_name`` of an evaluation ``table`` (``crop-sim evaluate --task``'s table.json) with
     that evaluation's terms, and compare it with the table's oracle and rule on the same seasons (USD/ha).
-    The rule's return per season is its mean over the table's noise seeds (the MPC reads no noisy value:
+    The rule's return per season is its mean over the table's noise seeds (the planners read no noisy value:
     its return does not depend on the noise seed). Intervals: 95 % bootstrap over seasons, paired."""
     from crop_sim_ros.task.scenario import get_scenario
     from crop_agent_ros.learning.evaluate_task import RULE, _ratio, evaluation_sets, interval
@@ -311,15 +312,15 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
         "settings": {**mpc.describe(), **asdict(settings), "pool_generator": generator},
         "decisions": mpc.decisions, "planning_cpu_s": round(mpc.planning_cpu_s, 1), "wall_s": round(wall_s, 1),
         "rows": rows}
-    log(f"{'season':>7} {'oracle':>9} {'rule regret':>12} {'MPC regret':>11}")
+    log(f"{'season':>7} {'oracle':>9} {'rule regret':>12} {'planner regret':>15}")
     for row in rows:
         log(f"{row['season']:>7} {row['oracle_usd_ha']:>9,.0f} {row['rule_regret_usd_ha']:>12,.0f} "
-            f"{row['mpc_regret_usd_ha']:>11,.0f}")
+            f"{row['mpc_regret_usd_ha']:>15,.0f}")
     log(f"{set_name} ({len(index)} seasons, USD/ha): oracle {summary['oracle_usd_ha']:,.0f}; rule regret "
         f"{summary['rule_regret_usd_ha']:,.0f} [{summary['rule_regret_ci'][0]:,.0f}, {summary['rule_regret_ci'][1]:,.0f}]; "
-        f"MPC regret {summary['mpc_regret_usd_ha']:,.0f} [{summary['mpc_regret_ci'][0]:,.0f}, "
-        f"{summary['mpc_regret_ci'][1]:,.0f}]; MPC / rule {summary['mpc_over_rule']:.2f} [{low:.2f}, {high:.2f}]; "
-        f"MPC better on {100 * summary['mpc_wins_over_rule']:.0f} % of seasons; {wall_s:.0f} s")
+        f"{mpc.name} regret {summary['mpc_regret_usd_ha']:,.0f} [{summary['mpc_regret_ci'][0]:,.0f}, "
+        f"{summary['mpc_regret_ci'][1]:,.0f}]; planner / rule {summary['mpc_over_rule']:.2f} [{low:.2f}, {high:.2f}]; "
+        f"planner better on {100 * summary['mpc_wins_over_rule']:.0f} % of seasons; {wall_s:.0f} s")
     return summary
 
 
