@@ -161,7 +161,14 @@ def test_with_the_true_weather_as_its_only_guess_the_hindsight_planner_nears_the
     assert returns[0] - returns[1] > 0  # another season's weather as the guess costs something
 
 
-def test_hindsight_settings_and_planner_names_are_checked():
+def test_hindsight_settings_and_planner_names_are_checked(quota_task):
+    scenario, contexts, pool = quota_task
+    policy = fm.planner(fo.TaskConstants.of_scenario(scenario), pool, CHEAP_HINDSIGHT)
+    policy.begin_season(contexts_with_terms(contexts[:1], TERMS))
+    skipped = np.zeros((1, fm.EXTENDED.size))
+    skipped[0, fm.DAYS_SINCE_SOWING] = 3.0  # a first observation on day 3: the crop's state is unknown
+    with pytest.raises(ValueError, match="field 0 is on day 3 after day -1; it follows a season day by day"):
+        policy.act(skipped)
     with pytest.raises(ValueError, match="scenarios and decision_every_days must be >= 1 and amounts >= 2"):
         fh.HindsightSettings(amounts=1)
     with pytest.raises(ValueError, match="grid steps must be > 0"):

@@ -32,7 +32,7 @@ reach; the values V_j still know their continuation's future, so it is not optim
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -206,11 +206,4 @@ class FamilyHindsightPolicy(ContinuationPlanner):
         return out
 
     def describe(self):
-        return {"name": self.name, "scenarios": self.settings.scenarios,
-                "decision_every_days": self.settings.decision_every_days, "pool_seed": POOL_SEED,
-                "pools": sorted(self.pools), "water_step_mm": self.settings.water_step_mm,
-                "offset_step_degc_d": self.settings.offset_step_degc_d, "amounts": self.settings.amounts,
-                "multipliers_per_value": list(self.settings.multipliers_per_value),
-                "refined_multipliers": self.settings.refined_multipliers,
-                "search_water_step_mm": self.settings.search_water_step_mm,
-                "search_offset_step_degc_d": self.settings.search_offset_step_degc_d}
+        return {"name": self.name, "pool_seed": POOL_SEED, "pools": sorted(self.pools), **asdict(self.settings)}
