@@ -134,8 +134,7 @@ def test_the_programme_restarted_in_mid_season_continues_its_own_plan(quota_task
         state, growth = model.initial_state(params), 0.0
         for d in range(60):
             before = state.biomass_kg_ha[0]
-            state, _ = model.step(params, state, model.DailyWeather(c.tmax_degc[d], c.tmin_degc[d], c.srad_mj_m2[d],
-                                                                    c.rain_mm[d], c.et0_mm[d]), schedule[d:d + 1])
+            state, _ = model.step(params, state, c.weather_on(d), schedule[d:d + 1])
             growth += programme.value_per_kg * (state.biomass_kg_ha[0] - before)
         price_tables = [None if t is None else t[k:k + 1] for t in later_tables]
         restarted, to_go = family_dp._forward_plans(programme, price_tables, prices[k:k + 1], amounts=9, first_day=60,

@@ -35,7 +35,6 @@ from __future__ import annotations
 import json
 import sys
 import time
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -113,7 +112,7 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
     return {"format": FORMAT, "task": task_name, "observations": observations,
             "mm": np.concatenate(recorder.labels), "season": pool_seasons[np.concatenate(recorder.fields)],
             "day": np.rint(observations[:, DAYS_SINCE_SOWING]).astype(np.int64), "episode_return_usd_ha": episodes.episode_return,
-            "settings": json.dumps({**mpc.describe(), **asdict(settings), "action_noise_mm": action_noise_mm,
+            "settings": json.dumps({**mpc.describe(), "action_noise_mm": action_noise_mm,
                                     "seed": seed, "behaviour": behaviour_path, "seasons": [int(seasons.min()), int(seasons.max())],
                                     "wall_s": round(time.perf_counter() - began, 1)})}
 

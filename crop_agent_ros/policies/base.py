@@ -53,6 +53,12 @@ class SeasonContext:
     water_cost_per_mm: float = -1.25e-4
     extra: dict = field(default_factory=dict)
 
+    def weather_on(self, day: int):
+        """Day ``day``'s weather as SIMPLE's step reads it (``crop_sim_ros.model.DailyWeather``)."""
+        from crop_sim_ros.model import DailyWeather
+        return DailyWeather(self.tmax_degc[day], self.tmin_degc[day], self.srad_mj_m2[day], self.rain_mm[day],
+                            self.et0_mm[day])
+
 
 @runtime_checkable
 class Policy(Protocol):

@@ -284,9 +284,7 @@ def _forward_plans(programme: SeasonProgramme, tables: list, prices: np.ndarray,
         top = np.where(state.mature, 0.0, np.minimum(programme.cap, np.maximum(left, 0.0)))
         choices = (top[:, None] * fraction[None, :]).ravel()
         batch = model.CropState(*(np.repeat(a, amounts) for a in state))
-        weather = model.DailyWeather(context.tmax_degc[d], context.tmin_degc[d], context.srad_mj_m2[d],
-                                 context.rain_mm[d], context.et0_mm[d])
-        after, _ = model.step(params, batch, weather, choices)
+        after, _ = model.step(params, batch, context.weather_on(d), choices)
         growth = programme.value_per_kg * (after.biomass_kg_ha - batch.biomass_kg_ha)
         events = problem.event_cost * (choices > 0.0)
         reward = (growth - np.repeat(prices, amounts) * choices - events).reshape(count, amounts)

@@ -32,7 +32,7 @@ reach; the values V_j still know their continuation's future, so it is not optim
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,7 +40,7 @@ from crop_sim_ros import model
 
 from .base import DAYS_SINCE_SOWING, SeasonContext
 from .family_dp import SeasonProgramme, _forward_plans
-from .family_mpc import APPLIED_YESTERDAY, POOL_SEED, ContinuationPlanner, spliced
+from .family_mpc import APPLIED_YESTERDAY, ContinuationPlanner, spliced
 from .family_oracle import TaskConstants
 
 
@@ -113,10 +113,6 @@ class FamilyHindsightPolicy(ContinuationPlanner):
         self.states = [model.initial_state(c.params) for c in self.contexts]
         self.guesses: list[list[_Guess]] = [[] for _ in self.contexts]
 
-    def _weather(self, context: SeasonContext, day: int) -> model.DailyWeather:
-        return model.DailyWeather(context.tmax_degc[day], context.tmin_degc[day], context.srad_mj_m2[day],
-                                  context.rain_mm[day], context.et0_mm[day])
-
     def _quota_left_mm(self, i: int, day: int) -> float:
         return self.problems[i].quota_mm - float(self.applied[i][:day].sum())
 
@@ -169,7 +165,7 @@ class FamilyHindsightPolicy(ContinuationPlanner):
         amounts = top * np.linspace(0.0, 1.0, self.settings.amounts)
         n = len(amounts)
         batch = model.CropState(*(np.repeat(a, n) for a in state))
-        after, _ = model.step(model.repeat_parameters(context.params, n), batch, self._weather(context, day), amounts)
+        after, _ = model.step(model.repeat_parameters(context.params, n), batch, context.weather_on(day), amounts)
         score = (self.guesses[i][0].programme.value_per_kg * (after.biomass_kg_ha - batch.biomass_kg_ha)
                  - problem.water_cost_per_mm * amounts - problem.event_cost * (amounts > 0.0))
         later = np.zeros(n)
@@ -197,13 +193,10 @@ class FamilyHindsightPolicy(ContinuationPlanner):
                                  f"it follows a season day by day from sowing")
             if day > 0:  # yesterday: the water the environment applied, on yesterday's true weather
                 self.applied[i][day - 1] = obs[i, APPLIED_YESTERDAY]
-                self.states[i], _ = model.step(context.params, self.states[i], self._weather(context, day - 1),
+                self.states[i], _ = model.step(context.params, self.states[i], context.weather_on(day - 1),
                                                self.applied[i][day - 1:day])
             self.last_day[i] = day
             if day % self.settings.decision_every_days == 0 or not self.guesses[i]:
                 self._replan(i, day)
             out[i] = self._decide(i, day)
         return out
-
-    def describe(self):
-        return {"name": self.name, "pool_seed": POOL_SEED, "pools": sorted(self.pools), **asdict(self.settings)}

@@ -147,6 +147,9 @@ class ContinuationPlanner(BasePolicy):
         self.last_day = np.full(len(self.contexts), -1)
         self.done = np.zeros(len(self.contexts), dtype=bool)
 
+    def describe(self):
+        return {"name": self.name, "pool_seed": POOL_SEED, "pools": sorted(self.pools), **asdict(self.settings)}
+
     def _check_batch(self, obs) -> None:
         if not self.contexts or len(self.contexts) != len(obs):
             raise ValueError(f"{self.name}: begin_season with one context per field first ({len(self.contexts)} "
@@ -212,10 +215,6 @@ class FamilyMpcPolicy(ContinuationPlanner):
             out[i] = self.block[i][days[i]]
         return out
 
-    def describe(self):
-        return {"name": self.name, "scenarios": self.settings.scenarios,
-                "decision_every_days": self.settings.decision_every_days, "pool_seed": POOL_SEED,
-                "pools": sorted(self.pools)}
 
 
 # --- the two causal planners, by name -------------------------------------------------------------------------
@@ -309,7 +308,7 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
         "mpc_regret_ci": list(interval(means[:, 1])),
         "mpc_over_rule": float(regrets[:, 1].mean() / regrets[:, 0].mean()), "mpc_over_rule_ci": [low, high],
         "mpc_wins_over_rule": float(np.mean(regrets[:, 1] < regrets[:, 0])),
-        "settings": {**mpc.describe(), **asdict(settings), "pool_generator": generator},
+        "settings": {**mpc.describe(), "pool_generator": generator},
         "decisions": mpc.decisions, "planning_cpu_s": round(mpc.planning_cpu_s, 1), "wall_s": round(wall_s, 1),
         "rows": rows}
     log(f"{'season':>7} {'oracle':>9} {'rule regret':>12} {'planner regret':>15}")
