@@ -182,3 +182,42 @@ def test_report_command_refuses_bad_input_with_one_line(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 3 and all(line.startswith("family_oracle: --") for line in err)
     assert "not a family task" in err[0] and "names no season" in err[1] and "has seasons 0..999" in err[2]
+
+
+def test_the_backward_pass_reads_shifted_offsets_as_the_general_lookup_does(quota_task):
+    """The backward pass's lookup (the next offsets are the grid's shifted by one amount per state) must give
+    the bilinear values of the general lookup: for shifts below the offset step (its slicing), beyond it (its
+    fallback), and offsets pushed past the grid's end (its last column)."""
+    scenario, contexts = quota_task
+    problem = problems_of(scenario, contexts, [1], {"yield_value_per_t": np.array([1000.0]),
+                                                   "water_cost_per_mm": np.array([1.0]),
+                                                   "quota_mm": np.array([300.0])})[0]
+    programme = family_dp.SeasonProgramme(problem, water_step_mm=4.0, offset_step_degc_d=40.0)
+    rng = np.random.default_rng(3)
+    tables = rng.normal(size=(3, len(programme.water), len(programme.offsets)))
+    water = rng.uniform(-5.0, programme.water[-1] + 10.0, size=(len(programme.water), 5))
+    for shift in (rng.uniform(0.0, 39.9, len(programme.water)), rng.uniform(0.0, 130.0, len(programme.water))):
+        general = programme._lookup(tables, water, programme.offsets[None, :] + shift[:, None], False)
+        np.testing.assert_allclose(programme._lookup_shifted(tables, water, shift), general, rtol=0, atol=1e-12)
+    # by hand at one point: W halfway between grid levels 2 and 3, offset a quarter past the last-but-one level
+    shift = np.full(len(programme.water), 10.0)
+    at = programme._lookup_shifted(tables, np.full((len(programme.water), 1), 10.0), shift)[0, 0, 0, -2]
+    corners = tables[0, 2:4, -2:]
+    assert at == pytest.approx(0.5 * (0.75 * corners[0, 0] + 0.25 * corners[0, 1])
+                               + 0.5 * (0.75 * corners[1, 0] + 0.25 * corners[1, 1]))
+
+
+def test_value_tables_kept_day_terms_change_nothing(quota_task):
+    """A planner asks one programme for tables at several sets of prices, keeping each day's price-independent
+    terms in a dict: the tables must be those of a fresh computation, for either rounding, in either order."""
+    scenario, contexts = quota_task
+    problem = problems_of(scenario, contexts, [2], {"yield_value_per_t": np.array([1100.0]),
+                                                   "water_cost_per_mm": np.array([1.5]),
+                                                   "quota_mm": np.array([250.0])})[0]
+    programme = family_dp.SeasonProgramme(problem, water_step_mm=4.0, offset_step_degc_d=80.0)
+    kept = {}
+    for prices, rounding in (([1.5, 20.0], False), ([1.5, 20.0], True), ([9.0], False), ([9.0, 30.0], True)):
+        fresh_value, fresh = programme.value_tables(prices, rounding)
+        value, tables = programme.value_tables(prices, rounding, day_terms=kept)
+        np.testing.assert_array_equal(value, fresh_value)
+        assert all((a is None and b is None) or np.array_equal(a, b) for a, b in zip(tables, fresh))

@@ -190,8 +190,26 @@ class SeasonProgramme:
         high = np.take(flat, corner + no, axis=1) * (1 - fo) + np.take(flat, corner + no + 1, axis=1) * fo
         return low * (1 - fw) + high * fw
 
+    def _lookup_shifted(self, tables: np.ndarray, water_mm: np.ndarray, shift_degc_d: np.ndarray) -> np.ndarray:
+        """tables (M, nW, nO) at W (n, K) and the offsets ``offsets + shift_degc_d`` (shift (n,) >= 0): (M, n, K,
+        nO), as :meth:`_lookup` (bilinear, offsets beyond the grid: its last). A state's next offsets are its grid
+        offsets shifted by one amount (:meth:`_state_terms`); when every shift is below the offset step (a day's
+        senescence is at most I50maxW, 30 degC d for potato) the offset interpolation is between neighbouring
+        columns of whole table rows, not a gather per element: what makes the backward pass cheap."""
+        part = shift_degc_d / self.offset_step
+        if part.max() >= 1.0:
+            return self._lookup(tables, water_mm, self.offsets[None, :] + shift_degc_d[:, None], False)
+        count, nw, no = tables.shape
+        padded = np.concatenate([tables, tables[:, :, -1:]], axis=2)  # beyond the last offset: the last
+        w = np.clip(water_mm / self.water_step, 0.0, nw - 1)
+        w0 = np.minimum(np.floor(w).astype(np.int64), nw - 2)
+        low = padded[:, w0]
+        rows = low + (padded[:, w0 + 1] - low) * (w - w0)[None, :, :, None]  # (M, n, K, nO + 1): interpolated in W
+        return rows[..., :-1] + (rows[..., 1:] - rows[..., :-1]) * part[None, :, None, None]
+
     def _state_terms(self, d: int):
-        """For the grid states of day d >= 1: fSolar (nW, nO) and tomorrow's offset (nW, nO)."""
+        """For the grid states of day d >= 1: fSolar (nW, nO) and the shift (nW,) of tomorrow's offset over
+        today's (degC d): tomorrow's offsets are ``offsets + shift``."""
         p = self.p
         u = simple.WATER_UPTAKE_COEFFICIENT
         yesterday_t = np.minimum(self.et0[d - 1], self.water * u / (1.0 - u))
@@ -200,13 +218,25 @@ class SeasonProgramme:
         cover = simple.canopy_cover(self.tt[d], p["i50a_degc_d"], p["thermal_time_to_maturity_degc_d"],
                                     self.base_i50b[d] + self.offsets, p["fsolar_max"])
         extra = np.maximum(p["i50_max_water_degc_d"] * (1.0 - f_water) - self.heat_increment[d - 1], 0.0)
-        return response[:, None] * cover[None, :], self.offsets[None, :] + extra[:, None]
+        return response[:, None] * cover[None, :], extra
 
-    def value_tables(self, prices_per_mm, rounding: bool, first_day: int = 0) -> tuple[np.ndarray | None, list]:
+    def _day_terms(self, d: int, rounding: bool, kept: dict | None) -> tuple:
+        """:meth:`_state_terms` and :meth:`_choices` of the grid states of day d, from ``kept`` if it holds them
+        (they do not depend on the price), else computed and stored there."""
+        if kept is None:
+            return self._state_terms(d) + self._choices(self.water, d, rounding)
+        if (d, rounding) not in kept:
+            kept[d, rounding] = self._state_terms(d) + self._choices(self.water, d, rounding)
+        return kept[d, rounding]
+
+    def value_tables(self, prices_per_mm, rounding: bool, first_day: int = 0,
+                     day_terms: dict | None = None) -> tuple[np.ndarray | None, list]:
         """For M prices per mm of irrigation: the return still to come from the initial state (M,) (without
         the initial biomass's value), and the value tables (M, nW, nO) of days 1..last growth day + 1.
         ``first_day`` > 0: only the tables of days first_day..last growth day + 1 (the others None), and no
-        initial value (None): what a decision in mid-season needs."""
+        initial value (None): what a decision in mid-season needs. ``day_terms``: a dict that keeps each day's
+        price-independent terms across calls on this programme at other prices (a caller's, to drop with it:
+        megabytes on fine grids)."""
         prices = np.atleast_1d(np.asarray(prices_per_mm, dtype=float))
         event = self.problem.event_cost
         last = self.last_growth_day
@@ -215,12 +245,14 @@ class SeasonProgramme:
             return np.zeros(len(prices)), tables
         tables[last + 1] = np.zeros((len(prices), len(self.water), len(self.offsets)))
         for d in range(last, max(first_day, 1) - 1, -1):
-            fsolar, next_offset = self._state_terms(d)
-            next_w, factor, charged, wet, valid = self._choices(self.water, d, rounding)
+            fsolar, shift, next_w, factor, charged, wet, valid = self._day_terms(d, rounding, day_terms)
             gain = self.value_per_kg * self.growth_scale[d] * fsolar[:, None, :] * factor[:, :, None]
-            charge = prices[:, None, None] * charged[None] + event * wet[None]
-            total = (gain[None] - charge[..., None]) + self._lookup(tables[d + 1], next_w, next_offset, rounding)
-            tables[d] = np.where(valid[None, :, :, None], total, -np.inf).max(axis=2)
+            charge = np.where(valid[None], prices[:, None, None] * charged[None] + event * wet[None], np.inf)
+            if rounding:
+                later = self._lookup(tables[d + 1], next_w, self.offsets[None, :] + shift[:, None], True)
+            else:
+                later = self._lookup_shifted(tables[d + 1], next_w, shift)
+            tables[d] = ((gain[None] - charge[..., None]) + later).max(axis=2)
         if first_day > 0:
             return None, tables
         w0 = np.array([self.p["initial_paw_mm"]])
@@ -230,10 +262,11 @@ class SeasonProgramme:
         later = self._lookup(tables[1], next_w, np.zeros((1, 1)), rounding)[..., 0]
         return np.where(valid[None], gain[None] - charge + later, -np.inf).max(axis=(1, 2)), tables
 
-    def bounds_at(self, multipliers) -> np.ndarray:
-        """The upper bound at each of the quota's multipliers (reward units per mm)."""
+    def bounds_at(self, multipliers, day_terms: dict | None = None) -> np.ndarray:
+        """The upper bound at each of the quota's multipliers (reward units per mm); ``day_terms`` as
+        :meth:`value_tables`'."""
         multipliers = np.atleast_1d(np.asarray(multipliers, dtype=float))
-        values, _ = self.value_tables(self.problem.water_cost_per_mm + multipliers, rounding=True)
+        values, _ = self.value_tables(self.problem.water_cost_per_mm + multipliers, rounding=True, day_terms=day_terms)
         quota = self.problem.quota_mm
         return (self.value_per_kg * self.p["initial_biomass_kg_ha"] + values
                 + (multipliers * quota if np.isfinite(quota) else 0.0))
@@ -247,10 +280,10 @@ def upper_bound(problem, water_step_mm: float = 0.25, multipliers_per_round: int
     if not np.isfinite(problem.quota_mm):
         return BoundResult(float(programme.bounds_at(0.0)[0]), 0.0, 1, water_step_mm)
     grid = np.concatenate([[0.0], problem.yield_value_per_t * np.geomspace(1e-4, 0.05, multipliers_per_round - 1)])
-    tried, values = [], []
+    tried, values, day_terms = [], [], {}
     for round_ in range(rounds):
         tried.append(grid)
-        values.append(programme.bounds_at(grid))
+        values.append(programme.bounds_at(grid, day_terms))
         best = int(np.argmin(values[-1]))
         low, high = grid[max(best - 1, 0)], grid[min(best + 1, len(grid) - 1)]
         grid = np.linspace(low, high, multipliers_per_round + 2)[1:-1]

@@ -130,12 +130,13 @@ class FamilyHindsightPolicy(ContinuationPlanner):
             programme = SeasonProgramme(problem, s.water_step_mm, s.offset_step_degc_d)
             search = programme if s.search_water_step_mm is None else SeasonProgramme(
                 problem, s.search_water_step_mm, s.search_offset_step_degc_d)
-            best = self._best_multiplier(search, i, day, first)
+            day_terms: dict = {}  # the search programme's, shared by its two calls
+            best = self._best_multiplier(search, i, day, first, day_terms)
             if len(first) > 1 and s.refined_multipliers:
                 k = int(np.searchsorted(first, best[0]))
                 between = np.linspace(first[max(k - 1, 0)], first[min(k + 1, len(first) - 1)],
                                       s.refined_multipliers + 2)[1:-1]
-                best = max(best, self._best_multiplier(search, i, day, between), key=lambda b: b[1])
+                best = max(best, self._best_multiplier(search, i, day, between, day_terms), key=lambda b: b[1])
             tables = best[2]
             if search is not programme:  # the chosen multiplier's tables on the fine grids
                 _, tables = programme.value_tables([truth.water_cost_per_mm + best[0]], rounding=False,
@@ -145,12 +146,13 @@ class FamilyHindsightPolicy(ContinuationPlanner):
         self.decisions += 1
         self.planning_cpu_s += time.process_time() - began
 
-    def _best_multiplier(self, programme: SeasonProgramme, i: int, day: int,
-                         multipliers: np.ndarray) -> tuple[float, float, list]:
+    def _best_multiplier(self, programme: SeasonProgramme, i: int, day: int, multipliers: np.ndarray,
+                         day_terms: dict) -> tuple[float, float, list]:
         """Of ``multipliers``, the one whose plan from field ``i``'s state on ``day`` returns most on the
-        programme's weather: (multiplier, return to go, its value tables)."""
+        programme's weather: (multiplier, return to go, its value tables); ``day_terms`` as
+        :meth:`SeasonProgramme.value_tables`'."""
         prices = self.problems[i].water_cost_per_mm + multipliers
-        _, tables = programme.value_tables(prices, rounding=False, first_day=day + 1)
+        _, tables = programme.value_tables(prices, rounding=False, first_day=day + 1, day_terms=day_terms)
         _, returns = _forward_plans(programme, tables, prices, self.settings.amounts, first_day=day,
                                     state=self.states[i], quota_left_mm=self._quota_left_mm(i, day))
         best = int(np.argmax(returns))
