@@ -100,6 +100,35 @@ def test_cloning_fits_the_actor_and_reaches_the_zero_bound_one_sidedly():
         imitation.clone(model, AgentInterface(interface.scaler, 1, "residual", rule=object()), data, epochs=1, seed=0)
 
 
+def test_cloning_can_keep_the_epoch_of_least_held_out_error():
+    """Labels with noise of their own (as a noisy sensor makes them look to the network): the fit learns the
+    training seasons' noise and the held-out error rises after its best epoch. With keep_best the actor ends
+    with that epoch's weights: its held-out error, recomputed here from the model, is the least of the run, below
+    the last epoch's (the same run without keep_best)."""
+    import torch
+    from stable_baselines3 import PPO
+    obs = _observations(12)
+    day = obs[:, DAY]
+    season = np.tile(np.arange(12), len(obs) // 12)
+    mm = np.clip(0.3 * (day - 40.0), 0.0, 20.0) + np.random.default_rng(5).uniform(0.0, 6.0, len(obs))
+    data = {"observations": obs, "mm": mm, "season": season, "day": day,
+            "file": np.zeros(len(obs), dtype=int), "files": ["synthetic"]}
+    interface = AgentInterface(ObservationScaler.fit(obs), 1, "mm")
+    reports, models = {}, {}
+    for keep_best in (False, True):
+        torch.manual_seed(0)
+        models[keep_best] = PPO("MlpPolicy", Spaces((EXTENDED.size,), (1,)), policy_kwargs={"net_arch": [64, 64]},
+                                seed=0, device="cpu")
+        reports[keep_best] = imitation.clone(models[keep_best], interface, data, epochs=40, seed=0, batch_size=32,
+                                             learning_rate=3e-3, log=lambda *a, **k: None, keep_best=keep_best)
+    assert reports[False]["kept_epoch"] == 40 and 1 <= reports[True]["kept_epoch"] < 40
+    assert reports[True]["abs_error_mm"] < reports[False]["abs_error_mm"]
+    held = np.isin(season, reports[True]["held_out_seasons"])
+    action, _ = models[True].predict(interface.scaler(obs[held]).astype(np.float32), deterministic=True)
+    recomputed = np.mean(np.abs((np.clip(action[:, 0], -1, 1) + 1.0) / 2.0 * 25.0 - np.clip(mm[held], 0, 25)))
+    assert recomputed == pytest.approx(reports[True]["abs_error_mm"], abs=2e-3)
+
+
 def test_with_a_history_the_inputs_are_the_stacks_the_agent_sees():
     """Demonstrations of 3 seasons from 2 files, shuffled: each sample's input is what an agent with a
     3-day history computes when it meets that season's observations day by day."""
@@ -147,6 +176,7 @@ def test_train_imitate_writes_a_policy_that_acts_like_its_demonstrations(tmp_pat
     assert summary["imitation"]["samples"] + summary["imitation"]["held_out_samples"] == len(demonstrations["mm"])
     first = LearnedPolicy(sorted(out.glob("checkpoint_*.zip"))[0])  # after cloning, before any PPO update
     assert json.loads(first.path.with_suffix(".json").read_text())["imitation"]["epochs"] == 200
+    assert summary["imitation"]["kept_epoch"] == 200  # without --imitation-keep-best: the last epoch
     error = np.abs(first.act(demonstrations["observations"].astype(float)) - demonstrations["mm"])
     assert error.mean() < 1.0, error.mean()  # one season's 140 days, fitted 200 epochs: memorised
     # the run's 1 % policy: after 2 of the 200 cloning epochs, further from the demonstrations

@@ -166,10 +166,13 @@ def network_inputs(interface, demonstrations: dict) -> tuple[np.ndarray, np.ndar
 
 
 def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learning_rate: float = 1e-3,
-          batch_size: int = 256, log=print, after_epoch=None) -> dict:
+          batch_size: int = 256, log=print, after_epoch=None, keep_best: bool = False) -> dict:
     """Fit ``model``'s actor mean (an SB3 PPO ``MlpPolicy``) to the demonstrations (module docstring); the
     critic and the log-std are left as they are; ``after_epoch(epoch)`` is called after each epoch (1-based).
-    Returns the fit's error on held-out seasons (mm)."""
+    ``keep_best``: the actor ends with the weights of the epoch whose held-out error was least (early stopping:
+    on noisy observations, e.g. ``benton-sensing``'s, the held-out error rises after a few tens of epochs as
+    the fit learns the training seasons' noise), else with the last epoch's. Returns the fit's error on
+    held-out seasons (mm) and the epoch it was reached at."""
     import torch
     if interface.action_kind != "mm":
         raise UsageError("--imitate: behaviour cloning fits the mm action (--action mm)")
@@ -202,6 +205,7 @@ def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learni
     error_on = "held-out seasons'" if held.size else "training samples' (fewer than 10 seasons: none held out)"
     began = time.perf_counter()
     before = test_error_mm()
+    best = (np.inf, 0, None)  # (held-out error mm, epoch, the actor's weights)
     for epoch in range(epochs):
         order = torch.randperm(len(x_fit), generator=generator)
         for first in range(0, len(order), batch_size):
@@ -212,12 +216,20 @@ def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learni
             optimiser.step()
         if after_epoch is not None:
             after_epoch(epoch + 1)
+        if keep_best and (error := test_error_mm()) < best[0]:
+            best = (error, epoch + 1, [w.detach().clone() for w in actor])
         if (epoch + 1) % max(1, epochs // 5) == 0:
             log(f"behaviour cloning: epoch {epoch + 1}/{epochs}, {error_on} mean abs error {test_error_mm():.2f} mm",
                 file=sys.stderr)
+    if keep_best:
+        with torch.no_grad():
+            for weight, kept in zip(actor, best[2]):
+                weight.copy_(kept)
+        log(f"behaviour cloning: kept epoch {best[1]} (the least held-out error)", file=sys.stderr)
     return {"files": [str(p) for p in demonstrations["files"]], "samples": int(len(x_fit)),
             "held_out_samples": int(test.sum()), "held_out_seasons": sorted(int(s) for s in held),
-            "epochs": epochs, "learning_rate": learning_rate, "batch_size": batch_size,
+            "epochs": epochs, "kept_epoch": best[1] if keep_best else epochs, "learning_rate": learning_rate,
+            "batch_size": batch_size,
             "error_on": error_on, "abs_error_mm_before": round(before, 3), "abs_error_mm": round(test_error_mm(), 3),
             "wall_s": round(time.perf_counter() - began, 1)}
 

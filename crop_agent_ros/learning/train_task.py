@@ -46,6 +46,8 @@ def add_task_arguments(parser) -> None:
                         help="with --task: first fit the policy to these demonstrations of the causal MPC "
                              "(`crop-sim demonstrate`; behaviour cloning), then PPO on the reward (a variant)")
     parser.add_argument("--imitation-epochs", type=int, default=100, help="epochs of behaviour cloning")
+    parser.add_argument("--imitation-keep-best", action="store_true",
+                        help="end the cloning with the epoch of least held-out error, not the last (early stopping)")
 
 
 def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
@@ -199,7 +201,7 @@ def train_task(args) -> dict:
                 early_weights.update({k: v.clone() for k, v in model.policy.state_dict().items()})
 
         imitation = clone(model, interface, load_demonstrations(args.imitate, scenario.name), args.imitation_epochs,
-                          args.seed, after_epoch=keep_early)
+                          args.seed, after_epoch=keep_early, keep_best=args.imitation_keep_best)
         imitation["early_model"] = f"after {early_epoch} of {args.imitation_epochs} behaviour-cloning epochs"
     validation = validation_scenario(scenario, args.validation_seasons, args.seed)
     seasons = np.arange(args.validation_seasons)
