@@ -27,7 +27,8 @@ Behaviour cloning (:func:`clone`): the actor's mean action a (the network's inpu
 normalised observation, or the last k of them with ``--history k``) is fitted to a* = mm / 12.5 - 1 (the
 agent's a in [-1, 1] -> (a + 1) / 2 x 25 mm) by squared error, one-sided where a* sits on a bound (a* = -1,
 no water: any a <= -1 is exact, since the action is clipped there). A tenth of the seasons is held out of the
-fit to report its error (mean absolute, mm).
+fit to report its error (mean absolute, mm); with ``--imitation-keep-best`` the fit ends with the epoch whose
+error there was least (early stopping; else the last epoch).
 """
 
 from __future__ import annotations
