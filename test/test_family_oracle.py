@@ -198,10 +198,10 @@ def test_the_backward_pass_reads_shifted_offsets_as_the_general_lookup_does(quot
     water = rng.uniform(-5.0, programme.water[-1] + 10.0, size=(len(programme.water), 5))
     for shift in (rng.uniform(0.0, 39.9, len(programme.water)), rng.uniform(0.0, 130.0, len(programme.water))):
         general = programme._lookup(tables, water, programme.offsets[None, :] + shift[:, None], False)
-        np.testing.assert_allclose(programme._lookup_shifted(tables, water, shift), general, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(programme._lookup_shifted(tables, water, shift, False), general, rtol=0, atol=1e-12)
     # by hand at one point: W halfway between grid levels 2 and 3, offset a quarter past the last-but-one level
     shift = np.full(len(programme.water), 10.0)
-    at = programme._lookup_shifted(tables, np.full((len(programme.water), 1), 10.0), shift)[0, 0, 0, -2]
+    at = programme._lookup_shifted(tables, np.full((len(programme.water), 1), 10.0), shift, False)[0, 0, 0, -2]
     corners = tables[0, 2:4, -2:]
     assert at == pytest.approx(0.5 * (0.75 * corners[0, 0] + 0.25 * corners[0, 1])
                                + 0.5 * (0.75 * corners[1, 0] + 0.25 * corners[1, 1]))

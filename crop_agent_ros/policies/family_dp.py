@@ -190,15 +190,17 @@ class SeasonProgramme:
         high = np.take(flat, corner + no, axis=1) * (1 - fo) + np.take(flat, corner + no + 1, axis=1) * fo
         return low * (1 - fw) + high * fw
 
-    def _lookup_shifted(self, tables: np.ndarray, water_mm: np.ndarray, shift_degc_d: np.ndarray) -> np.ndarray:
+    def _lookup_shifted(self, tables: np.ndarray, water_mm: np.ndarray, shift_degc_d: np.ndarray,
+                        rounding: bool) -> np.ndarray:
         """tables (M, nW, nO) at W (n, K) and the offsets ``offsets + shift_degc_d`` (shift (n,) >= 0): (M, n, K,
-        nO), as :meth:`_lookup` (bilinear, offsets beyond the grid: its last). A state's next offsets are its grid
-        offsets shifted by one amount (:meth:`_state_terms`); when every shift is below the offset step (a day's
-        senescence is at most I50maxW, 30 degC d for potato) the offset interpolation is between neighbouring
-        columns of whole table rows, not a gather per element: what makes the backward pass cheap."""
+        nO), as :meth:`_lookup`. A state's next offsets are its grid offsets shifted by one amount
+        (:meth:`_state_terms`); when every shift is below the offset step (a day's senescence is at most I50maxW,
+        30 degC d for potato) the bilinear interpolation in the offset is between neighbouring columns of whole
+        table rows, not a gather per element: what makes the backward pass cheap. Rounding (the bound), or a
+        shift of a step or more: :meth:`_lookup` itself."""
         part = shift_degc_d / self.offset_step
-        if part.max() >= 1.0:
-            return self._lookup(tables, water_mm, self.offsets[None, :] + shift_degc_d[:, None], False)
+        if rounding or part.max() >= 1.0:
+            return self._lookup(tables, water_mm, self.offsets[None, :] + shift_degc_d[:, None], rounding)
         count, nw, no = tables.shape
         padded = np.concatenate([tables, tables[:, :, -1:]], axis=2)  # beyond the last offset: the last
         w = np.clip(water_mm / self.water_step, 0.0, nw - 1)
@@ -248,10 +250,7 @@ class SeasonProgramme:
             fsolar, shift, next_w, factor, charged, wet, valid = self._day_terms(d, rounding, day_terms)
             gain = self.value_per_kg * self.growth_scale[d] * fsolar[:, None, :] * factor[:, :, None]
             charge = np.where(valid[None], prices[:, None, None] * charged[None] + event * wet[None], np.inf)
-            if rounding:
-                later = self._lookup(tables[d + 1], next_w, self.offsets[None, :] + shift[:, None], True)
-            else:
-                later = self._lookup_shifted(tables[d + 1], next_w, shift)
+            later = self._lookup_shifted(tables[d + 1], next_w, shift, rounding)
             tables[d] = ((gain[None] - charge[..., None]) + later).max(axis=2)
         if first_day > 0:
             return None, tables
