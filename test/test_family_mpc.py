@@ -115,6 +115,38 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
     assert "is not a table.json" in capsys.readouterr().err
 
 
+def _planner_run(set_name: str, regrets: dict) -> dict:
+    return {"task": "benton-quota", "set": set_name, "rows": [
+        {"season": season, "rule_regret_usd_ha": 400.0, "mpc_regret_usd_ha": regret} for season, regret in regrets.items()]}
+
+
+def test_two_planner_runs_are_compared_on_the_seasons_both_ran(tmp_path, capsys):
+    base = _planner_run("far-benton", {1: 100.0, 2: 200.0, 3: 300.0})
+    other = _planner_run("far-benton", {2: 150.0, 3: 330.0, 4: 50.0})  # seasons 2 and 3 in common: -50 and +30
+    result = fm.paired_runs(base, other)
+    assert result["seasons"] == 2 and result["other_lower_on"] == 1
+    assert result["base_regret_usd_ha"] == 250.0 and result["other_regret_usd_ha"] == 240.0
+    assert result["difference_usd_ha"] == -10.0
+    low, high = result["difference_ci"]  # bootstrap means of two differences lie between them
+    assert -50.0 <= low < -10.0 < high <= 30.0
+    files = [tmp_path / "base.json", tmp_path / "other.json"]
+    for path, run in zip(files, (base, other)):
+        path.write_text(json.dumps(run))
+    assert fm.main(["--paired", *map(str, files)]) == 0
+    assert "difference -10 [" in capsys.readouterr().out
+    files[1].write_text(json.dumps(_planner_run("heldout-real", {2: 1.0})))
+    assert fm.main(["--paired", *map(str, files)]) == 2
+    assert "pair runs of one task and set" in capsys.readouterr().err
+    files[1].write_text(json.dumps(_planner_run("far-benton", {9: 1.0})))
+    assert fm.main(["--paired", *map(str, files)]) == 2
+    assert "share no season" in capsys.readouterr().err
+    files[1].write_text("[1]")
+    assert fm.main(["--paired", *map(str, files)]) == 2
+    assert "must both be --out files" in capsys.readouterr().err
+    assert fm.main(["--set", "far-benton"]) == 2
+    assert "--table and --set are required" in capsys.readouterr().err
+
+
 def test_the_programme_restarted_in_mid_season_continues_its_own_plan(quota_task):
     # the dynamic programme's forward plan from sowing, and the same plan restarted on day 60 from the state it
     # reached with the quota it left: the same days after, and returns to go that add up (an error in the

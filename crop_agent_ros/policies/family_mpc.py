@@ -34,6 +34,8 @@ either on a set of an evaluation, beside that evaluation's oracle and rule:
     python -m crop_agent_ros.policies.family_mpc [--method hindsight-value|mean-plan] \\
         --table results/family/benton-quota/table.json --set heldout-real [--seasons 0..4] [--scenarios K] \\
         [--decision-every-days 7] [--out FILE.json]
+
+and ``--paired BASE.json OTHER.json`` compares two such runs season by season (:func:`paired_runs`).
 """
 
 from __future__ import annotations
@@ -323,11 +325,36 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     return summary
 
 
+def paired_runs(base: dict, other: dict, resamples: int = 2000) -> dict:
+    """``other`` planner run against ``base`` (two summaries of :func:`compare_with_table`, as ``--out`` writes
+    them) on the seasons both ran, which must be of one task and set: each one's mean regret (USD/ha), the mean
+    of other - base per season with its 95 % bootstrap interval over seasons, and on how many seasons other's
+    regret is lower. What tells two planner settings apart beyond the noise of the seasons."""
+    from crop_agent_ros.learning.evaluate_task import interval
+    for key in ("task", "set"):
+        if base.get(key) != other.get(key):
+            raise ValueError(f"--paired: the runs are of {key} {base.get(key)!r} and {other.get(key)!r}; "
+                             f"pair runs of one task and set")
+    base_regret = {row["season"]: row["mpc_regret_usd_ha"] for row in base["rows"]}
+    common = [row for row in other["rows"] if row["season"] in base_regret]
+    if not common:
+        raise ValueError("--paired: the two runs share no season")
+    other_regret = np.array([row["mpc_regret_usd_ha"] for row in common])
+    mine = np.array([base_regret[row["season"]] for row in common])
+    rule = np.array([row["rule_regret_usd_ha"] for row in common])
+    difference = other_regret - mine
+    low, high = interval(_bootstrap_mean(difference, np.random.default_rng(0), resamples))
+    return {"task": base["task"], "set": base["set"], "seasons": len(common),
+            "rule_regret_usd_ha": float(rule.mean()), "base_regret_usd_ha": float(mine.mean()),
+            "other_regret_usd_ha": float(other_regret.mean()), "difference_usd_ha": float(difference.mean()),
+            "difference_ci": [low, high], "other_lower_on": int(np.sum(difference < 0))}
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m crop_agent_ros.policies.family_mpc",
                                      description="the causal MPC on a set of an evaluation, beside its oracle and rule")
-    parser.add_argument("--table", required=True, help="table.json of `crop-sim evaluate --task T`")
-    parser.add_argument("--set", required=True, help="evaluation set name (e.g. heldout-real, far-benton)")
+    parser.add_argument("--table", help="table.json of `crop-sim evaluate --task T` (required unless --paired)")
+    parser.add_argument("--set", help="evaluation set name (e.g. heldout-real, far-benton; required unless --paired)")
     parser.add_argument("--seasons", help="positions in the set 'A..B' (default: all)")
     parser.add_argument("--method", default=METHODS[0], choices=METHODS,
                         help="hindsight-value: each day the amount best on average over the continuations "
@@ -335,7 +362,27 @@ def main(argv=None) -> int:
     parser.add_argument("--scenarios", type=int, help="continuations per decision (default: the planner's, 4 or 8)")
     parser.add_argument("--decision-every-days", type=int, help="days between decisions (default: 7)")
     parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
+    parser.add_argument("--paired", nargs=2, metavar=("BASE", "OTHER"),
+                        help="run nothing: compare two --out files of one task and set, season by season")
     args = parser.parse_args(argv)
+    if args.paired:
+        try:
+            base, other = (json.loads(Path(name).read_text()) for name in args.paired)
+            if not all(isinstance(run, dict) and "rows" in run for run in (base, other)):
+                raise ValueError(f"--paired: {' and '.join(args.paired)} must both be --out files of this command")
+            result = paired_runs(base, other)
+        except (OSError, ValueError, KeyError) as error:
+            print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
+            return 2
+        low, high = result["difference_ci"]
+        print(f"{result['task']} {result['set']}, {result['seasons']} seasons (USD/ha): rule regret "
+              f"{result['rule_regret_usd_ha']:,.0f}; {args.paired[0]} {result['base_regret_usd_ha']:,.0f}; "
+              f"{args.paired[1]} {result['other_regret_usd_ha']:,.0f}; difference {result['difference_usd_ha']:+,.0f} "
+              f"[{low:+,.0f}, {high:+,.0f}]; lower on {result['other_lower_on']} of {result['seasons']} seasons")
+        return 0
+    if args.table is None or args.set is None:
+        print("family_mpc: --table and --set are required (or --paired BASE OTHER)", file=sys.stderr)
+        return 2
     try:
         with open(args.table) as f:
             table = json.load(f)
