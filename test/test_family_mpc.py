@@ -1,5 +1,5 @@
 """The task family's causal planners (crop_agent_ros.policies.family_mpc's mean of plans, family_hindsight's
-daily hindsight value) and what they re-plan with (the oracle's frozen days; the dynamic programme from a
+daily hindsight value, family_expected's expected-value programme) and what they re-plan with (the oracle's frozen days; the dynamic programme from a
 mid-season state): frozen days are kept, a controller never reads the weather after the day it acts on, nor
 a noisy value, its schedules are feasible, and bad input is refused with one line. Small budgets (2
 continuations, coarse grids and search): the file runs in about two minutes."""
@@ -10,7 +10,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from crop_agent_ros.policies import family_dp, family_hindsight as fh, family_mpc as fm, family_oracle as fo
+from crop_agent_ros.policies import family_dp, family_expected as fe, family_hindsight as fh, family_mpc as fm
+from crop_agent_ros.policies import family_oracle as fo
 from crop_agent_ros.policies.rollout import contexts_with_terms, run_episodes, season_contexts
 from crop_sim_ros import model
 from crop_sim_ros.task import get_scenario
@@ -18,6 +19,8 @@ from crop_sim_ros.task import get_scenario
 CHEAP = fm.MpcSettings(scenarios=2, decision_every_days=14, replan_first_step_mm=2.0, finest_step_mm=1.0)
 CHEAP_HINDSIGHT = fh.HindsightSettings(scenarios=2, decision_every_days=14, water_step_mm=4.0,
                                        offset_step_degc_d=80.0, amounts=9)
+CHEAP_EXPECTED = fe.ExpectedSettings(scenarios=2, decision_every_days=14, water_step_mm=4.0,
+                                     offset_step_degc_d=80.0, amounts=9, programme_amounts=5)
 TERMS = {"yield_value_per_t": np.array([1100.0]), "water_cost_per_mm": np.array([1.5]),
          "quota_mm": np.array([250.0])}
 
@@ -62,7 +65,8 @@ def _daily_irrigation(scenario, contexts, pool, seed, settings, seasons=(0,)):
     return episodes, episodes.daily["irrigation_mm"][:int(episodes.days[0]), 0]
 
 
-@pytest.mark.parametrize("settings", [CHEAP, CHEAP_HINDSIGHT], ids=["mean-plan", "hindsight-value"])
+@pytest.mark.parametrize("settings", [CHEAP, CHEAP_HINDSIGHT, CHEAP_EXPECTED],
+                         ids=["mean-plan", "hindsight-value", "expected-value"])
 def test_a_planner_acts_without_the_future_weather_and_without_noisy_values(quota_task, settings):
     scenario, contexts, pool = quota_task
     episodes, applied = _daily_irrigation(scenario, contexts, pool, seed=0, settings=settings)
@@ -177,12 +181,14 @@ def test_the_programme_restarted_in_mid_season_continues_its_own_plan(quota_task
                                    whole_returns[k], rtol=1e-9)
 
 
-def test_with_the_true_weather_as_its_only_guess_the_hindsight_planner_nears_the_oracle(quota_task):
+@pytest.mark.parametrize("settings", [fh.HindsightSettings(scenarios=1, decision_every_days=7),
+                                      fe.ExpectedSettings(scenarios=1, decision_every_days=7)],
+                         ids=["hindsight-value", "expected-value"])
+def test_with_the_true_weather_as_its_only_guess_a_planner_nears_the_oracle(quota_task, settings):
     scenario, contexts, _ = quota_task
     constants = fo.TaskConstants.of_scenario(scenario)
     truth = contexts_with_terms([contexts[0]], TERMS)
     oracle = fo.plan_fields(fo.field_problems(truth, constants))[0].return_value
-    settings = fh.HindsightSettings(scenarios=1, decision_every_days=7)
     clairvoyant = fm.planner(constants, {"benton": [contexts[0]]}, settings)
     guessing = fm.planner(constants, fm.continuation_pool(get_scenario("benton-generated"), 1), settings)
     returns = [run_episodes(p, scenario, np.array([0]), seed=0, contexts=contexts, terms=TERMS).episode_return[0]
@@ -190,6 +196,42 @@ def test_with_the_true_weather_as_its_only_guess_the_hindsight_planner_nears_the
     assert returns[0] <= oracle + 1e-6
     assert oracle - returns[0] < 0.005 * oracle  # measured: 0.17 %; with 7 multipliers and no refinement: 1.9 %
     assert returns[0] - returns[1] > 0  # another season's weather as the guess costs something
+
+
+def test_the_expected_value_programme_of_one_weather_is_the_programme_of_that_weather(quota_task):
+    # two discretisations of one dynamic programme: the expected-value programme chooses among amounts (0 ..
+    # the capacity), SeasonProgramme among tomorrow's grid levels of soil water; on one weather they agree to
+    # the choice grid's loss (measured: 1.47 USD/ha with 9 amounts, 0.37 with 129, of 18,272), and a weather
+    # given twice is that weather (the mean of equal terms)
+    scenario, contexts, _ = quota_task
+    problem = fo.field_problems(contexts_with_terms([contexts[0]], TERMS), fo.TaskConstants.of_scenario(scenario))[0]
+    prices = [1.5, 1.5 + 0.02 * 1100.0]
+    exact = family_dp.SeasonProgramme(problem, 4.0, 80.0).value_tables(prices, rounding=False, first_day=30)[1]
+    fine = fe.ExpectedProgramme([family_dp.SeasonProgramme(problem, 4.0, 80.0)], 129).value_tables(prices, 30)
+    coarse = fe.ExpectedProgramme([family_dp.SeasonProgramme(problem, 4.0, 80.0)], 9).value_tables(prices, 30)
+    twice = fe.ExpectedProgramme([family_dp.SeasonProgramme(problem, 4.0, 80.0) for _ in range(2)], 9).value_tables(
+        prices, 30)
+    for d in (30, 60, 90):
+        np.testing.assert_allclose(fine[d], exact[d], atol=1.0)
+        assert np.abs(coarse[d] - exact[d]).max() > np.abs(fine[d] - exact[d]).max()  # fewer choices lose more
+        np.testing.assert_allclose(twice[d], coarse[d], rtol=1e-12)
+    assert fine[29] is None and len(fine) == len(exact)
+
+
+def test_the_expected_value_programme_averages_the_weather_of_each_day(quota_task):
+    # two weathers: a rainless copy and a wet copy of one season. The value of a dry state is the mean of
+    # what it is worth when tomorrow may bring either, so it lies between each weather's own value
+    scenario, contexts, _ = quota_task
+    problem = fo.field_problems(contexts_with_terms([contexts[0]], TERMS), fo.TaskConstants.of_scenario(scenario))[0]
+    context = problem.context
+    dry = replace(problem, context=replace(context, rain_mm=np.zeros_like(context.rain_mm)))
+    wet = replace(problem, context=replace(context, rain_mm=np.full_like(context.rain_mm, 6.0)))
+    tables = [fe.ExpectedProgramme([family_dp.SeasonProgramme(p, 4.0, 80.0) for p in problems], 9).value_tables(
+        [1.5], 40)[40][0, :, 0] for problems in ([dry], [wet], [dry, wet])]
+    low, high, mixed = tables
+    assert np.all(high >= low - 1e-6) and (high - low)[:10].min() > 100.0  # rain is worth much to a dry soil
+    assert np.all(mixed >= low - 1e-6) and np.all(mixed <= high + 1e-6)
+    assert np.all((mixed - low)[:10] > 0.2 * (high - low)[:10])
 
 
 def test_hindsight_settings_and_planner_names_are_checked(quota_task):
@@ -208,5 +250,9 @@ def test_hindsight_settings_and_planner_names_are_checked(quota_task):
         fh.HindsightSettings(multipliers_per_value=(-0.01,))
     with pytest.raises(ValueError, match="--method: unknown planner 'best'"):
         fm.planner_settings("best", 2, 7)
-    assert isinstance(fm.planner_settings("hindsight-value", 3, 5), fh.HindsightSettings)
+    assert type(fm.planner_settings("hindsight-value", 3, 5)) is fh.HindsightSettings
+    assert fm.planner_settings("expected-value", 3, 5) == fe.ExpectedSettings(scenarios=3, decision_every_days=5)
+    assert isinstance(fm.planner(fo.TaskConstants.of_scenario(scenario), pool, CHEAP_EXPECTED), fe.FamilyExpectedPolicy)
+    with pytest.raises(ValueError, match="programme_amounts must be >= 2"):
+        fe.ExpectedSettings(programme_amounts=1)
     assert fm.planner_settings("mean-plan", 3, 5) == fm.MpcSettings(scenarios=3, decision_every_days=5)

@@ -221,15 +221,16 @@ class FamilyMpcPolicy(ContinuationPlanner):
 
 # --- the two causal planners, by name -------------------------------------------------------------------------
 
-METHODS = ("hindsight-value", "mean-plan")
+METHODS = ("hindsight-value", "mean-plan", "expected-value")
 
 
 def planner_settings(method: str, scenarios: int | None = None, decision_every_days: int | None = None):
     """The settings of planner ``method`` (a METHODS entry: ``mean-plan`` is this module's
     :class:`FamilyMpcPolicy`, ``hindsight-value`` :mod:`crop_agent_ros.policies.family_hindsight`'s), with
     the planner's defaults where an argument is None."""
+    from .family_expected import ExpectedSettings
     from .family_hindsight import HindsightSettings
-    kinds = {"mean-plan": MpcSettings, "hindsight-value": HindsightSettings}
+    kinds = {"mean-plan": MpcSettings, "hindsight-value": HindsightSettings, "expected-value": ExpectedSettings}
     if method not in kinds:
         raise ValueError(f"--method: unknown planner {method!r}; known: {', '.join(METHODS)}")
     given = {"scenarios": scenarios, "decision_every_days": decision_every_days}
@@ -238,7 +239,10 @@ def planner_settings(method: str, scenarios: int | None = None, decision_every_d
 
 def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings) -> BasePolicy:
     """The causal planner that ``settings`` (:class:`MpcSettings` or ``HindsightSettings``) configures."""
+    from .family_expected import ExpectedSettings, FamilyExpectedPolicy
     from .family_hindsight import FamilyHindsightPolicy, HindsightSettings
+    if isinstance(settings, ExpectedSettings):
+        return FamilyExpectedPolicy(constants, pools, settings)
     if isinstance(settings, HindsightSettings):
         return FamilyHindsightPolicy(constants, pools, settings)
     if isinstance(settings, MpcSettings):
