@@ -26,12 +26,14 @@ checks that its actions do not depend on the weather after the day they are take
 is a measured **upper bound on the least regret a causal controller can reach**. It is not a lower bound:
 a better controller (more continuations, conditioning on the forecast, daily decisions) may do better.
 
-This mean of plans (``mean-plan``) is one of two planners (:data:`METHODS`); the other, ``hindsight-value``
-(:mod:`crop_agent_ros.policies.family_hindsight`), shares one decision a day across the continuations and
-removes more of the rule's regret. :func:`planner` builds either from its settings; the command line runs
-either on a set of an evaluation, beside that evaluation's oracle and rule:
+This mean of plans (``mean-plan``) is one of three planners (:data:`METHODS`); ``hindsight-value``
+(:mod:`crop_agent_ros.policies.family_hindsight`) shares one decision a day across the continuations and
+removes more of the rule's regret; ``expected-value`` (:mod:`crop_agent_ros.policies.family_expected`) makes
+that decision from values that average over the weather inside one programme. :func:`planner` builds each
+from its settings; the command line runs one on a set of an evaluation, beside that evaluation's oracle and
+rule:
 
-    python -m crop_agent_ros.policies.family_mpc [--method hindsight-value|mean-plan] \\
+    python -m crop_agent_ros.policies.family_mpc [--method hindsight-value|mean-plan|expected-value] \\
         --table results/family/benton-quota/table.json --set heldout-real [--seasons 0..4] [--scenarios K] \\
         [--decision-every-days 7] [--out FILE.json]
 
@@ -226,8 +228,9 @@ METHODS = ("hindsight-value", "mean-plan", "expected-value")
 
 def planner_settings(method: str, scenarios: int | None = None, decision_every_days: int | None = None):
     """The settings of planner ``method`` (a METHODS entry: ``mean-plan`` is this module's
-    :class:`FamilyMpcPolicy`, ``hindsight-value`` :mod:`crop_agent_ros.policies.family_hindsight`'s), with
-    the planner's defaults where an argument is None."""
+    :class:`FamilyMpcPolicy`, ``hindsight-value`` :mod:`crop_agent_ros.policies.family_hindsight`'s,
+    ``expected-value`` :mod:`crop_agent_ros.policies.family_expected`'s), with the planner's defaults where an
+    argument is None."""
     from .family_expected import ExpectedSettings
     from .family_hindsight import HindsightSettings
     kinds = {"mean-plan": MpcSettings, "hindsight-value": HindsightSettings, "expected-value": ExpectedSettings}
