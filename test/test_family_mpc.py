@@ -1,8 +1,8 @@
 """The task family's causal planners (crop_agent_ros.policies.family_mpc's mean of plans, family_hindsight's
-daily hindsight value, family_expected's expected-value programme) and what they re-plan with (the oracle's frozen days; the dynamic programme from a
-mid-season state): frozen days are kept, a controller never reads the weather after the day it acts on, nor
-a noisy value, its schedules are feasible, and bad input is refused with one line. Small budgets (2
-continuations, coarse grids and search): the file runs in about two minutes."""
+daily hindsight value, family_expected's expected-value programme) and what they re-plan with (the oracle's
+frozen days; the dynamic programme from a mid-season state): frozen days are kept, a controller never reads
+the weather after the day it acts on, nor a noisy value, its schedules are feasible, and bad input is refused
+with one line. Small budgets (2 continuations, coarse grids and search): the file runs in about 90 s."""
 
 import json
 from dataclasses import replace
@@ -121,7 +121,8 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
 
 def _planner_run(set_name: str, regrets: dict) -> dict:
     return {"task": "benton-quota", "set": set_name, "rows": [
-        {"season": season, "rule_regret_usd_ha": 400.0, "mpc_regret_usd_ha": regret} for season, regret in regrets.items()]}
+        {"season": season, "rule_regret_usd_ha": 400.0, "mpc_regret_usd_ha": regret}
+        for season, regret in regrets.items()]}
 
 
 def test_two_planner_runs_are_compared_on_the_seasons_both_ran(tmp_path, capsys):

@@ -9,8 +9,8 @@ the headline agent, which learns from the reward alone): ``crop-sim demonstrate`
 generated training seasons, and ``crop-sim train --task T --imitate FILES`` fits the PPO network's policy to
 them before (optional) PPO fine-tuning on the reward.
 
-    crop-sim demonstrate --task benton-quota --seasons 0..99 [--method hindsight-value|mean-plan|expected-value] [--scenarios K]
-        [--decision-every-days 7] [--action-noise-mm 1.0] [--seed 0] --out demos/benton-quota-0.npz
+    crop-sim demonstrate --task benton-quota --seasons 0..99 [--method hindsight-value|mean-plan|expected-value]
+        [--scenarios K] [--decision-every-days 7] [--action-noise-mm 1.0] [--seed 0] --out demos/benton-quota-0.npz
 
 Demonstrations: the planner (by default the hindsight-value one; the MPC of earlier runs with ``--method
 mean-plan``) runs on training seasons of the task's own pool (generated weather, the seasons the
@@ -244,7 +244,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--method", default=METHODS[0], choices=METHODS,
                         help="the teacher: a causal planner of crop_agent_ros.policies.family_mpc")
     parser.add_argument("--scenarios", type=int, help="planner: weather continuations per decision (default: the "
-                                                       "planner's, 4 for hindsight-value and expected-value, 8 for mean-plan)")
+                                                       "planner's, 4 for hindsight-value and expected-value, 8 for "
+                                                       "mean-plan)")
     parser.add_argument("--decision-every-days", type=int, help="planner: days between decisions (default: 7)")
     parser.add_argument("--action-noise-mm", type=float, default=1.0,
                         help="std of the noise added to the executed amount on wet days (mm)")

@@ -221,7 +221,7 @@ class FamilyMpcPolicy(ContinuationPlanner):
 
 
 
-# --- the two causal planners, by name -------------------------------------------------------------------------
+# --- the three causal planners, by name -----------------------------------------------------------------------
 
 METHODS = ("hindsight-value", "mean-plan", "expected-value")
 
@@ -241,7 +241,8 @@ def planner_settings(method: str, scenarios: int | None = None, decision_every_d
 
 
 def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings) -> BasePolicy:
-    """The causal planner that ``settings`` (:class:`MpcSettings` or ``HindsightSettings``) configures."""
+    """The causal planner that ``settings`` (:class:`MpcSettings`, ``HindsightSettings`` or ``ExpectedSettings``)
+    configures."""
     from .family_expected import ExpectedSettings, FamilyExpectedPolicy
     from .family_hindsight import FamilyHindsightPolicy, HindsightSettings
     if isinstance(settings, ExpectedSettings):
@@ -364,8 +365,10 @@ def main(argv=None) -> int:
     parser.add_argument("--set", help="evaluation set name (e.g. heldout-real, far-benton; required unless --paired)")
     parser.add_argument("--seasons", help="positions in the set 'A..B' (default: all)")
     parser.add_argument("--method", default=METHODS[0], choices=METHODS,
-                        help="hindsight-value: each day the amount best on average over the continuations "
-                             "(family_hindsight); mean-plan: the mean of each continuation's best plan")
+                        help="hindsight-value: each day the amount best on average over the continuations' "
+                             "hindsight values (family_hindsight); mean-plan: the mean of each continuation's best "
+                             "plan; expected-value: the amount best by values that average over the weather "
+                             "(family_expected)")
     parser.add_argument("--scenarios", type=int, help="continuations per decision (default: the planner's, 4 or 8)")
     parser.add_argument("--decision-every-days", type=int, help="days between decisions (default: 7)")
     parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
