@@ -68,10 +68,9 @@ class ExpectedProgramme:
         base = programmes[0].p["i50b_degc_d"] + np.concatenate([[0.0, 0.0], np.cumsum(heat)[:-1]])
         for p in programmes:
             p.water, p.base_i50b = water, base
-        self.water, self.offsets, self.base_i50b = water, programmes[0].offsets, base
+        self.water, self.offsets = water, programmes[0].offsets
         self.last_growth_day = max(p.last_growth_day for p in programmes)
-        self.cap = programmes[0].cap
-        self.amounts = self.cap * np.linspace(0.0, 1.0, int(amounts))
+        self.amounts = programmes[0].cap * np.linspace(0.0, 1.0, int(amounts))
         self.event = programmes[0].problem.event_cost
 
     def _day_terms(self, d: int, kept: dict | None) -> list:
@@ -134,30 +133,23 @@ class FamilyExpectedPolicy(FamilyHindsightPolicy):
         fine = self._programme(problems, s.water_step_mm, s.offset_step_degc_d)
         search = fine if s.search_water_step_mm is None else self._programme(
             problems, s.search_water_step_mm, s.search_offset_step_degc_d)
-        first = truth.yield_value_per_t * np.asarray(sorted(s.multipliers_per_value), dtype=float)
-        if not np.isfinite(truth.quota_mm):
-            first = np.zeros(1)
-        day_terms: dict = {}
-        returns = self._policy_returns(search, i, day, first, day_terms)
-        multipliers = first
-        if len(first) > 1 and s.refined_multipliers:
-            k = int(np.argmax(returns))
-            between = np.linspace(first[max(k - 1, 0)], first[min(k + 1, len(first) - 1)],
-                                  s.refined_multipliers + 2)[1:-1]
-            multipliers = np.concatenate([first, between])
-            returns = np.concatenate([returns, self._policy_returns(search, i, day, between, day_terms)])
-        multiplier = float(multipliers[int(np.argmax(returns))])
+        day_terms: dict = {}  # the search programme's, shared by its two calls
+        multiplier = self._search_multiplier(
+            i, lambda multipliers: self._best_policy(search, i, day, multipliers, day_terms))[0]
         tables = fine.value_tables([truth.water_cost_per_mm + multiplier], first_day=day + 1)
         self.guesses[i] = [_Guess(fine.programmes[0], multiplier, _kept(tables, day + s.decision_every_days + 1))]
         self.decisions += 1
         self.planning_cpu_s += time.process_time() - began
 
-    def _policy_returns(self, programme: ExpectedProgramme, i: int, day: int, multipliers: np.ndarray,
-                        day_terms: dict) -> np.ndarray:
-        """The mean over the continuations of each multiplier's policy's return to go from field ``i``'s state
-        on ``day`` (each run on one continuation's weather, within the quota left)."""
+    def _best_policy(self, programme: ExpectedProgramme, i: int, day: int, multipliers: np.ndarray,
+                     day_terms: dict) -> tuple[float, float, None]:
+        """Of ``multipliers``, the one whose policy returns most to go from field ``i``'s state on ``day``, on
+        average over the continuations (each run on one continuation's weather, within the quota left):
+        (multiplier, mean return to go, None)."""
         prices = self.problems[i].water_cost_per_mm + multipliers
         tables = programme.value_tables(prices, first_day=day + 1, day_terms=day_terms)
-        returns = [_forward_plans(p, tables, prices, self.settings.amounts, first_day=day, state=self.states[i],
-                                  quota_left_mm=self._quota_left_mm(i, day))[1] for p in programme.programmes]
-        return np.mean(returns, axis=0)
+        returns = np.mean([_forward_plans(p, tables, prices, self.settings.amounts, first_day=day,
+                                          state=self.states[i], quota_left_mm=self._quota_left_mm(i, day))[1]
+                           for p in programme.programmes], axis=0)
+        best = int(np.argmax(returns))
+        return float(multipliers[best]), float(returns[best]), None

@@ -116,13 +116,27 @@ class FamilyHindsightPolicy(ContinuationPlanner):
     def _quota_left_mm(self, i: int, day: int) -> float:
         return self.problems[i].quota_mm - float(self.applied[i][:day].sum())
 
+    def _search_multiplier(self, i: int, best_of) -> tuple:
+        """The quota's multiplier (reward units per mm) of most return for field ``i``: ``best_of(multipliers)``
+        gives the best of some as (multiplier, return, anything kept with it); tried on the first grid (the
+        settings' fractions of the yield value per t; 0 alone without a quota), then on ``refined_multipliers``
+        evenly between the best first one's neighbours. Returns ``best_of``'s tuple of the best."""
+        s, truth = self.settings, self.problems[i]
+        first = truth.yield_value_per_t * np.asarray(sorted(s.multipliers_per_value), dtype=float)
+        if not np.isfinite(truth.quota_mm):
+            first = np.zeros(1)
+        best = best_of(first)
+        if len(first) > 1 and s.refined_multipliers:
+            k = int(np.searchsorted(first, best[0]))
+            between = np.linspace(first[max(k - 1, 0)], first[min(k + 1, len(first) - 1)],
+                                  s.refined_multipliers + 2)[1:-1]
+            best = max(best, best_of(between), key=lambda b: b[1])
+        return best
+
     def _replan(self, i: int, day: int) -> None:
         began = time.process_time()
         s = self.settings
         truth = self.problems[i]
-        first = truth.yield_value_per_t * np.asarray(sorted(s.multipliers_per_value), dtype=float)
-        if not np.isfinite(truth.quota_mm):
-            first = np.zeros(1)
         keep_until = day + s.decision_every_days + 1  # the tables the days to the next decision read
         guesses = []
         for continuation in self.field_pools[i]:
@@ -131,12 +145,8 @@ class FamilyHindsightPolicy(ContinuationPlanner):
             search = programme if s.search_water_step_mm is None else SeasonProgramme(
                 problem, s.search_water_step_mm, s.search_offset_step_degc_d)
             day_terms: dict = {}  # the search programme's, shared by its two calls
-            best = self._best_multiplier(search, i, day, first, day_terms)
-            if len(first) > 1 and s.refined_multipliers:
-                k = int(np.searchsorted(first, best[0]))
-                between = np.linspace(first[max(k - 1, 0)], first[min(k + 1, len(first) - 1)],
-                                      s.refined_multipliers + 2)[1:-1]
-                best = max(best, self._best_multiplier(search, i, day, between, day_terms), key=lambda b: b[1])
+            best = self._search_multiplier(
+                i, lambda multipliers: self._best_multiplier(search, i, day, multipliers, day_terms))
             tables = best[2]
             if search is not programme:  # the chosen multiplier's tables on the fine grids
                 _, tables = programme.value_tables([truth.water_cost_per_mm + best[0]], rounding=False,

@@ -375,35 +375,32 @@ def main(argv=None) -> int:
     parser.add_argument("--paired", nargs=2, metavar=("BASE", "OTHER"),
                         help="run nothing: compare two --out files of one task and set, season by season")
     args = parser.parse_args(argv)
-    if args.paired:
-        try:
+    try:
+        if args.paired:
             base, other = (json.loads(Path(name).read_text()) for name in args.paired)
             if not all(isinstance(run, dict) and "rows" in run for run in (base, other)):
                 raise ValueError(f"--paired: {' and '.join(args.paired)} must both be --out files of this command")
             result = paired_runs(base, other)
-        except (OSError, ValueError, KeyError) as error:
-            print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
-            return 2
+        elif args.table is None or args.set is None:
+            raise ValueError("--table and --set are required (or --paired BASE OTHER)")
+        else:
+            with open(args.table) as f:
+                table = json.load(f)
+            if not isinstance(table, dict) or "sets" not in table or "task" not in table:
+                raise ValueError(f"--table: {args.table} is not a table.json of `crop-sim evaluate --task`")
+            settings = planner_settings(args.method, args.scenarios, args.decision_every_days)
+            seasons = None if args.seasons is None else season_range(args.seasons)
+            summary = compare_with_table(table, args.set, seasons, settings)
+    except (OSError, ValueError, KeyError) as error:
+        print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
+        return 2
+    if args.paired:
         low, high = result["difference_ci"]
         print(f"{result['task']} {result['set']}, {result['seasons']} seasons (USD/ha): rule regret "
               f"{result['rule_regret_usd_ha']:,.0f}; {args.paired[0]} {result['base_regret_usd_ha']:,.0f}; "
               f"{args.paired[1]} {result['other_regret_usd_ha']:,.0f}; difference {result['difference_usd_ha']:+,.0f} "
               f"[{low:+,.0f}, {high:+,.0f}]; lower on {result['other_lower_on']} of {result['seasons']} seasons")
         return 0
-    if args.table is None or args.set is None:
-        print("family_mpc: --table and --set are required (or --paired BASE OTHER)", file=sys.stderr)
-        return 2
-    try:
-        with open(args.table) as f:
-            table = json.load(f)
-        if not isinstance(table, dict) or "sets" not in table or "task" not in table:
-            raise ValueError(f"--table: {args.table} is not a table.json of `crop-sim evaluate --task`")
-        settings = planner_settings(args.method, args.scenarios, args.decision_every_days)
-        seasons = None if args.seasons is None else season_range(args.seasons)
-        summary = compare_with_table(table, args.set, seasons, settings)
-    except (OSError, ValueError, KeyError) as error:
-        print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
-        return 2
     if args.out:
         Path(args.out).parent.mkdir(parents=True, exist_ok=True)
         Path(args.out).write_text(json.dumps({"command": sys.argv, **summary}, indent=1))
