@@ -238,3 +238,50 @@ def test_a_mixture_is_demonstrated_on_each_climate_with_its_own_continuations():
     np.testing.assert_array_equal(data["day"][mine], np.arange(days))
     np.testing.assert_array_equal(data["mm"][mine], both.daily["irrigation_mm"][:days, 1])
     assert data["mm"][mine].sum() > 0.0
+
+
+def test_a_sensing_task_is_demonstrated_with_the_quota_tasks_labels_without_planning(tmp_path):
+    """The planners read no PAW sensor and benton-sensing draws benton-quota's weather and terms, so re-running
+    a benton-quota file on benton-sensing (--labels-from) gives what planning on benton-sensing gives: the same
+    labels, the executed noise drawn the same way, the sensing task's own observations."""
+    quota = imitation.demonstrate("benton-quota", np.array([5, 6]), CHEAP, action_noise_mm=1.0, seed=3)
+    np.savez_compressed(tmp_path / "quota.npz", **quota)
+    planned = imitation.demonstrate("benton-sensing", np.array([5, 6]), CHEAP, action_noise_mm=1.0, seed=3)
+    replayed = imitation.demonstrate_with_labels_of("benton-sensing", str(tmp_path / "quota.npz"))
+    for key in ("observations", "mm", "season", "day", "episode_return_usd_ha"):
+        np.testing.assert_array_equal(replayed[key], planned[key], err_msg=key)
+    paw_observed = EXTENDED.index("paw_observed")
+    assert 0 < replayed["observations"][:, paw_observed].mean() < 1  # the sensing task's dropouts ...
+    assert np.all(quota["observations"][:, paw_observed] == 1)        # ... where the quota task reads every day
+    made = json.loads(str(replayed["settings"]))
+    assert made["labels_from"] == str(tmp_path / "quota.npz") and made["seed"] == 3 and made["seasons"] == [5, 6]
+
+
+def test_labels_are_taken_only_from_a_file_whose_states_this_task_reaches(tmp_path, demonstrations):
+    np.savez_compressed(tmp_path / "quota.npz", **demonstrations)
+    with pytest.raises(UsageError, match=r"season 5, day 0: quota_remaining_mm is 1000 here and [0-9.]+ in the file"):
+        imitation.demonstrate_with_labels_of("benton-capacity", str(tmp_path / "quota.npz"))
+    longer = dict(demonstrations, observations=np.r_[demonstrations["observations"], demonstrations["observations"][-1:]],
+                  mm=np.r_[demonstrations["mm"], 3.0], season=np.r_[demonstrations["season"], 5],
+                  day=np.r_[demonstrations["day"], 900])
+    np.savez_compressed(tmp_path / "longer.npz", **longer)
+    with pytest.raises(UsageError, match=f"reached {len(demonstrations['mm'])} of the file's {len(demonstrations['mm']) + 1} field-days"):
+        imitation.demonstrate_with_labels_of("benton-quota", str(tmp_path / "longer.npz"))
+    settings = json.loads(str(demonstrations["settings"]))
+    np.savez_compressed(tmp_path / "dagger.npz", **dict(demonstrations, settings=json.dumps({**settings, "behaviour": "a.zip"})))
+    with pytest.raises(UsageError, match="visited reading its own task's observations"):
+        imitation.demonstrate_with_labels_of("benton-sensing", str(tmp_path / "dagger.npz"))
+
+
+def test_demonstrate_labels_from_refuses_a_teacher_of_its_own(tmp_path, capsys, demonstrations):
+    from crop_agent_ros.cli import main
+    np.savez_compressed(tmp_path / "quota.npz", **demonstrations)
+    assert main(["demonstrate", "--task", "benton-sensing", "--labels-from", str(tmp_path / "quota.npz"),
+                 "--seasons", "0..1", "--method", "mean-plan", "--out", str(tmp_path / "d.npz")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the seasons, seed, noise and teacher are the file's; drop --seasons, --method" in err, err
+    assert main(["demonstrate", "--task", "benton-sensing", "--labels-from", str(tmp_path / "quota.npz"),
+                 "--out", str(tmp_path / "d.npz")]) == 0
+    with np.load(tmp_path / "d.npz") as written:
+        np.testing.assert_array_equal(written["mm"], demonstrations["mm"])
+        assert str(written["task"]) == "benton-sensing"

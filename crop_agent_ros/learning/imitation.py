@@ -80,25 +80,69 @@ class _Recorder:
         return np.where(label > 0.0, np.maximum(label + noise, 0.0), 0.0)
 
 
+class _LabelsOfFile:
+    """A teacher that does not plan: on each live field-day it gives the label a demonstrations file holds for
+    that (season, day). The planners read no PAW sensor, so a task that differs from the file's only in its
+    sensor (``benton-sensing`` and ``benton-quota``: same weather, same terms drawn from the same seed) has the
+    same labels on the same seasons with the same seed and executed noise; only the observations differ.
+    Every field-day is checked against the file on the observation values no sensor touches (thermal time,
+    day, today's weather, the terms, the quota left, yesterday's irrigation, ET0): a task whose states differ
+    is refused (ValueError naming the first field-day and value that differ), as is a file whose field-days
+    this run does not all reach."""
+
+    # Columns that depend only on the weather, the terms and the water applied: equal on the two tasks.
+    EXACT = ("thermal_time_degc_d", "days_since_sowing", "tmax_degc", "tmin_degc", "tavg_degc", "rain_mm",
+             "srad_mj_m2", "co2_ppm", "vap_hpa", "wind_m_s", "tuber_price_usd_per_t", "water_cost_usd_per_mm",
+             "event_cost_usd", "quota_remaining_mm", "season_days_left", "capacity_mm_per_day",
+             "irrigation_yesterday_mm", "et0_mm")
+
+    def __init__(self, path: str, data: dict, pool_seasons: np.ndarray):
+        from crop_sim_ros.task.layout import EXTENDED
+        self.path, self.pool_seasons = path, pool_seasons
+        self.columns = [EXTENDED.index(name) for name in self.EXACT]
+        self.row_of = {(int(s), int(d)): row for row, (s, d) in enumerate(zip(data["season"], data["day"]))}
+        self.observations, self.mm = data["observations"], data["mm"]
+        self.settings = json.loads(str(data["settings"]))
+        self.used = 0
+
+    def reset(self, seed=None):
+        self.day, self.used = 0, 0
+
+    def begin_season(self, contexts):
+        pass
+
+    def describe(self) -> dict:
+        return {**{k: v for k, v in self.settings.items() if k != "wall_s"}, "labels_from": self.path}
+
+    def act(self, obs):
+        rows = np.array([self.row_of.get((int(s), self.day), -1) for s in self.pool_seasons])
+        self.live = rows >= 0
+        mine, theirs = np.asarray(obs, dtype=np.float32)[self.live][:, self.columns], self.observations[rows[self.live]][:, self.columns]
+        differ = mine != theirs
+        if differ.any():
+            field, column = np.argwhere(differ)[0]
+            raise ValueError(f"season {self.pool_seasons[self.live][field]}, day {self.day}: "
+                             f"{self.EXACT[column]} is {mine[field, column]:g} here and {theirs[field, column]:g} in "
+                             f"the file (the file's task does not share this task's weather, terms or actions)")
+        self.used += int(self.live.sum())
+        self.day += 1
+        return np.where(self.live, self.mm[np.maximum(rows, 0)], 0.0)
+
+    def check_complete(self):
+        if self.used != len(self.mm):
+            raise ValueError(f"this run reached {self.used} of the file's {len(self.mm)} field-days "
+                             f"(the file's task ends its seasons on other days)")
+
+
 def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: float, seed: int,
                 behaviour_path: str | None = None) -> dict:
     """The MPC's demonstrations on ``seasons`` of ``task_name``'s training pool (of each climate of a mixture:
     its pool index is the file's ``season``; see the module docstring); with ``behaviour_path`` (a family
     agent's policy file of this task), on the states that agent visits."""
-    from crop_sim_ros.task.scenario import get_scenario
-    from ..policies.base import DAYS_SINCE_SOWING
     from ..policies.family_mpc import continuation_pool, planner
     from ..policies.family_oracle import TaskConstants
-    from ..policies.rollout import run_episodes
-    from ..policies.family_tuning import of_each_part
-    scenario = get_scenario(task_name)
-    if not scenario.is_family_task or scenario.weather.kind not in ("generator", "mixture"):
-        raise UsageError(f"--task: demonstrations need a family task trained on generated weather; {task_name!r} "
-                         f"is {'not a family task' if not scenario.is_family_task else 'on ' + scenario.weather.kind}")
-    with user_input(None, (ValueError,)):  # the message names --seasons
-        pool_seasons = of_each_part(scenario, seasons)
-    pools = continuation_pool(scenario, settings.scenarios)
-    mpc = planner(TaskConstants.of_scenario(scenario), pools, settings)
+    scenario, pool_seasons = _training_seasons(task_name, seasons)
+    mpc = planner(TaskConstants.of_scenario(scenario), continuation_pool(scenario, settings.scenarios), settings)
     behaviour = None
     if behaviour_path is not None:
         from .agent import LearnedPolicy
@@ -106,14 +150,58 @@ def demonstrate(task_name: str, seasons: np.ndarray, settings, action_noise_mm: 
             behaviour = LearnedPolicy(behaviour_path, name="behaviour")
         if behaviour.config.get("task") != task_name:
             raise UsageError(f"--behaviour {behaviour_path}: trained on {behaviour.config.get('task')!r}, not {task_name!r}")
-    recorder = _Recorder(mpc, action_noise_mm, seed, behaviour)
+    return _record(task_name, scenario, seasons, pool_seasons, mpc, action_noise_mm, seed, behaviour_path, behaviour)
+
+
+def demonstrate_with_labels_of(task_name: str, path: str) -> dict:
+    """The demonstrations of ``path`` (a planner's file, not a DAgger one) re-run on ``task_name``: the same
+    seasons, seed and executed noise, the file's labels (:class:`_LabelsOfFile`; no planning), this task's
+    observations. For a task that differs from the file's only in its PAW sensor (the planners read none)."""
+    with user_input(f"--labels-from {path}", (OSError, ValueError, KeyError)):
+        with np.load(path) as data:
+            if str(data["format"]) != FORMAT:
+                raise ValueError(f"not a demonstrations file ({FORMAT!r})")
+            data = {k: data[k] for k in ("observations", "mm", "season", "day", "settings")}
+        made = json.loads(str(data["settings"]))
+        if made.get("behaviour") is not None:
+            raise ValueError(f"its states are those {made['behaviour']} visited reading its own task's observations "
+                             f"(DAgger): they cannot be re-run on another task")
+        if "labels_from" in made:
+            raise ValueError(f"it re-runs {made['labels_from']}: give that file")
+        seasons = np.arange(made["seasons"][0], made["seasons"][1] + 1)
+    scenario, pool_seasons = _training_seasons(task_name, seasons)
+    teacher = _LabelsOfFile(path, data, pool_seasons)
+    with user_input(f"--labels-from {path}", (ValueError,)):
+        demonstrations = _record(task_name, scenario, seasons, pool_seasons, teacher, made["action_noise_mm"],
+                                 made["seed"], None, None)
+        teacher.check_complete()
+    return demonstrations
+
+
+def _training_seasons(task_name: str, seasons: np.ndarray):
+    """The family task and the pool indices of training positions ``seasons`` (UsageError if not a family task
+    on generated weather or out of its pool)."""
+    from crop_sim_ros.task.scenario import get_scenario
+    from ..policies.family_tuning import of_each_part
+    scenario = get_scenario(task_name)
+    if not scenario.is_family_task or scenario.weather.kind not in ("generator", "mixture"):
+        raise UsageError(f"--task: demonstrations need a family task trained on generated weather; {task_name!r} "
+                         f"is {'not a family task' if not scenario.is_family_task else 'on ' + scenario.weather.kind}")
+    with user_input(None, (ValueError,)):  # the message names --seasons
+        return scenario, of_each_part(scenario, seasons)
+
+
+def _record(task_name, scenario, seasons, pool_seasons, teacher, action_noise_mm, seed, behaviour_path, behaviour):
+    from ..policies.base import DAYS_SINCE_SOWING
+    from ..policies.rollout import run_episodes
+    recorder = _Recorder(teacher, action_noise_mm, seed, behaviour)
     began = time.perf_counter()
     episodes = run_episodes(recorder, scenario, pool_seasons, seed=seed)
     observations = np.concatenate(recorder.observations)
     return {"format": FORMAT, "task": task_name, "observations": observations,
             "mm": np.concatenate(recorder.labels), "season": pool_seasons[np.concatenate(recorder.fields)],
             "day": np.rint(observations[:, DAYS_SINCE_SOWING]).astype(np.int64), "episode_return_usd_ha": episodes.episode_return,
-            "settings": json.dumps({**mpc.describe(), "action_noise_mm": action_noise_mm,
+            "settings": json.dumps({**teacher.describe(), "action_noise_mm": action_noise_mm,
                                     "seed": seed, "behaviour": behaviour_path, "seasons": [int(seasons.min()), int(seasons.max())],
                                     "wall_s": round(time.perf_counter() - began, 1)})}
 
@@ -240,36 +328,54 @@ def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learni
 def add_arguments(parser) -> None:
     from ..policies.family_mpc import METHODS
     parser.add_argument("--task", required=True, help="a family task on generated weather (e.g. benton-quota)")
-    parser.add_argument("--seasons", required=True, help="training-pool seasons 'A..B' (of each climate of a mixture)")
-    parser.add_argument("--method", default=METHODS[0], choices=METHODS,
-                        help="the teacher: a causal planner of crop_agent_ros.policies.family_mpc")
+    parser.add_argument("--seasons", help="training-pool seasons 'A..B' (of each climate of a mixture); required "
+                                          "unless --labels-from")
+    parser.add_argument("--method", choices=METHODS,
+                        help=f"the teacher: a causal planner of crop_agent_ros.policies.family_mpc (default {METHODS[0]})")
     parser.add_argument("--scenarios", type=int, help="planner: weather continuations per decision (default: the "
                                                        "planner's, 4 for hindsight-value and expected-value, 8 for "
                                                        "mean-plan)")
     parser.add_argument("--decision-every-days", type=int, help="planner: days between decisions (default: 7)")
-    parser.add_argument("--action-noise-mm", type=float, default=1.0,
-                        help="std of the noise added to the executed amount on wet days (mm)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the terms, the noise and the sensor noise")
+    parser.add_argument("--action-noise-mm", type=float,
+                        help="std of the noise added to the executed amount on wet days (mm; default 1.0)")
+    parser.add_argument("--seed", type=int, help="seed of the terms, the noise and the sensor noise (default 0)")
     parser.add_argument("--behaviour", default=None,
                         help="a family agent's policy file of this task: it acts, the MPC labels the states it visits "
                              "(DAgger; --action-noise-mm is then unused)")
+    parser.add_argument("--labels-from", default=None, metavar="FILE",
+                        help="no planning: re-run a planner's demonstrations file (its seasons, seed, noise and "
+                             "labels) on --task, a task that differs from the file's only in its PAW sensor "
+                             "(benton-sensing from benton-quota); every state is checked against the file")
     parser.add_argument("--out", required=True, help="demonstrations file (.npz)")
 
 
 def run(args) -> int:
-    from ..policies.family_mpc import planner_settings
+    from ..policies.family_mpc import METHODS, planner_settings
     from ..policies.family_oracle import season_range
-    with user_input(None, (ValueError,)):  # the message names --seasons
-        seasons = season_range(args.seasons)
-    if not (np.isfinite(args.action_noise_mm) and args.action_noise_mm >= 0):
-        raise UsageError(f"--action-noise-mm: expected a number >= 0, got {args.action_noise_mm}")
-    with user_input("--scenarios / --decision-every-days", (ValueError,)):
-        settings = planner_settings(args.method, args.scenarios, args.decision_every_days)
-    data = demonstrate(args.task, seasons, settings, args.action_noise_mm, args.seed, args.behaviour)
+    if args.labels_from is not None:
+        given = [flag for flag, value in (("--seasons", args.seasons), ("--method", args.method),
+                                          ("--scenarios", args.scenarios), ("--decision-every-days", args.decision_every_days),
+                                          ("--action-noise-mm", args.action_noise_mm), ("--seed", args.seed),
+                                          ("--behaviour", args.behaviour)) if value is not None]
+        if given:
+            raise UsageError(f"--labels-from: the seasons, seed, noise and teacher are the file's; drop {', '.join(given)}")
+        data = demonstrate_with_labels_of(args.task, args.labels_from)
+    else:
+        if args.seasons is None:
+            raise UsageError("--seasons is required (unless --labels-from)")
+        with user_input(None, (ValueError,)):  # the message names --seasons
+            seasons = season_range(args.seasons)
+        noise_mm = 1.0 if args.action_noise_mm is None else args.action_noise_mm
+        if not (np.isfinite(noise_mm) and noise_mm >= 0):
+            raise UsageError(f"--action-noise-mm: expected a number >= 0, got {noise_mm}")
+        with user_input("--scenarios / --decision-every-days", (ValueError,)):
+            settings = planner_settings(args.method or METHODS[0], args.scenarios, args.decision_every_days)
+        data = demonstrate(args.task, seasons, settings, noise_mm, 0 if args.seed is None else args.seed, args.behaviour)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(out, **data)
-    actor = "the behaviour policy" if args.behaviour else "the planner with its noise"
+    actor = ("the behaviour policy" if args.behaviour else
+             f"the file's actions on {args.task}" if args.labels_from else "the planner with its noise")
     print(f"{len(data['mm'])} field-days of {len(np.unique(data['season']))} seasons -> {out}; return of {actor} "
           f"{data['episode_return_usd_ha'].mean():,.0f} USD/ha; {json.loads(data['settings'])['wall_s']} s")
     return 0
