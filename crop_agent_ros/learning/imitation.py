@@ -9,19 +9,22 @@ the headline agent, which learns from the reward alone): ``crop-sim demonstrate`
 generated training seasons, and ``crop-sim train --task T --imitate FILES`` fits the PPO network's policy to
 them before (optional) PPO fine-tuning on the reward.
 
-    crop-sim demonstrate --task benton-quota --seasons 0..99 [--method hindsight-value|mean-plan|expected-value]
+    crop-sim demonstrate --task benton-quota --seasons 0..99 [--method expected-value|hindsight-value|mean-plan]
         [--scenarios K] [--decision-every-days 7] [--action-noise-mm 1.0] [--seed 0] --out demos/benton-quota-0.npz
+    crop-sim demonstrate --task benton-sensing --labels-from demos/benton-quota-0.npz --out demos/benton-sensing-0.npz
 
-Demonstrations: the planner (by default the hindsight-value one; the MPC of earlier runs with ``--method
-mean-plan``) runs on training seasons of the task's own pool (generated weather, the seasons the
+Demonstrations: the planner (by default the expected-value one; the teachers of earlier runs with ``--method
+hindsight-value`` or ``mean-plan``) runs on training seasons of the task's own pool (generated weather, the seasons the
 agents train on; never a validation or evaluation season; for a task on several climates, the same positions
 of each climate's pool, each field planning with its own climate's continuations) with the task's terms drawn
 per season by the environment (``--seed``). To show the network states off the MPC's own path (Laskey et al.
 2017, DART), the executed amount on days the MPC irrigates is its amount plus Gaussian noise of
 ``--action-noise-mm`` (cut at 0); the label is always the MPC's own amount for the state reached. With
 ``--behaviour POLICY.zip`` a trained agent acts instead and the MPC labels the states the agent reaches (one
-round of DAgger, Ross et al. 2011). A file holds the observations (S, 29) and labels (S,) mm of every live
-field-day, the season and day of each, and how they were made.
+round of DAgger, Ross et al. 2011). The planners read no PAW sensor: with ``--labels-from FILE`` a planner's
+file of one task is re-run on a task that differs from it only in its sensor, with the file's labels and this
+task's observations, without planning (:class:`_LabelsOfFile`). A file holds the observations (S, 29) and
+labels (S,) mm of every live field-day, the season and day of each, and how they were made.
 
 Behaviour cloning (:func:`clone`): the actor's mean action a (the network's input as the agent sees it, the
 normalised observation, or the last k of them with ``--history k``) is fitted to a* = mm / 12.5 - 1 (the

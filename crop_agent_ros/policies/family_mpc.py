@@ -28,8 +28,9 @@ a better controller (more continuations, conditioning on the forecast, daily dec
 
 This mean of plans (``mean-plan``) is one of three planners (:data:`METHODS`); ``hindsight-value``
 (:mod:`crop_agent_ros.policies.family_hindsight`) shares one decision a day across the continuations and
-removes more of the rule's regret; ``expected-value`` (:mod:`crop_agent_ros.policies.family_expected`) makes
-that decision from values that average over the weather inside one programme. :func:`planner` builds each
+removes more of the rule's regret; ``expected-value`` (:mod:`crop_agent_ros.policies.family_expected`, the
+default) makes that decision from values that average over the weather inside one programme and removes more
+again. :func:`planner` builds each
 from its settings; the command line runs one on a set of an evaluation, beside that evaluation's oracle and
 rule:
 
@@ -223,7 +224,7 @@ class FamilyMpcPolicy(ContinuationPlanner):
 
 # --- the three causal planners, by name -----------------------------------------------------------------------
 
-METHODS = ("hindsight-value", "mean-plan", "expected-value")
+METHODS = ("expected-value", "hindsight-value", "mean-plan")  # the first is the default
 
 
 def planner_settings(method: str, scenarios: int | None = None, decision_every_days: int | None = None):
@@ -365,10 +366,10 @@ def main(argv=None) -> int:
     parser.add_argument("--set", help="evaluation set name (e.g. heldout-real, far-benton; required unless --paired)")
     parser.add_argument("--seasons", help="positions in the set 'A..B' (default: all)")
     parser.add_argument("--method", default=METHODS[0], choices=METHODS,
-                        help="hindsight-value: each day the amount best on average over the continuations' "
-                             "hindsight values (family_hindsight); mean-plan: the mean of each continuation's best "
-                             "plan; expected-value: the amount best by values that average over the weather "
-                             "(family_expected)")
+                        help="expected-value (default): the amount best by values that average over the weather "
+                             "(family_expected); hindsight-value: each day the amount best on average over the "
+                             "continuations' hindsight values (family_hindsight); mean-plan: the mean of each "
+                             "continuation's best plan")
     parser.add_argument("--scenarios", type=int, help="continuations per decision (default: the planner's, 4 or 8)")
     parser.add_argument("--decision-every-days", type=int, help="days between decisions (default: 7)")
     parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
