@@ -285,3 +285,17 @@ def test_demonstrate_labels_from_refuses_a_teacher_of_its_own(tmp_path, capsys, 
     with np.load(tmp_path / "d.npz") as written:
         np.testing.assert_array_equal(written["mm"], demonstrations["mm"])
         assert str(written["task"]) == "benton-sensing"
+
+
+def test_the_default_teacher_is_the_expected_value_planner(tmp_path, monkeypatch, demonstrations):
+    from crop_agent_ros.cli import main
+    from crop_agent_ros.policies.family_expected import ExpectedSettings
+    taught = {}
+
+    def record(task, seasons, settings, noise_mm, seed, behaviour):
+        taught.update(settings=settings, noise_mm=noise_mm, seed=seed)
+        return demonstrations
+
+    monkeypatch.setattr(imitation, "demonstrate", record)
+    assert main(["demonstrate", "--task", "benton-quota", "--seasons", "0..1", "--out", str(tmp_path / "d.npz")]) == 0
+    assert taught == {"settings": ExpectedSettings(), "noise_mm": 1.0, "seed": 0}
