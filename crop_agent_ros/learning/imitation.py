@@ -106,7 +106,7 @@ class _LabelsOfFile:
         self.row_of = {(int(s), int(d)): row for row, (s, d) in enumerate(zip(data["season"], data["day"]))}
         self.observations, self.mm = data["observations"], data["mm"]
         self.settings = json.loads(str(data["settings"]))
-        self.used = 0
+        self.day, self.used = 0, 0
 
     def reset(self, seed=None):
         self.day, self.used = 0, 0
@@ -120,7 +120,8 @@ class _LabelsOfFile:
     def act(self, obs):
         rows = np.array([self.row_of.get((int(s), self.day), -1) for s in self.pool_seasons])
         self.live = rows >= 0
-        mine, theirs = np.asarray(obs, dtype=np.float32)[self.live][:, self.columns], self.observations[rows[self.live]][:, self.columns]
+        mine = np.asarray(obs, dtype=np.float32)[self.live][:, self.columns]
+        theirs = self.observations[rows[self.live]][:, self.columns]
         differ = mine != theirs
         if differ.any():
             field, column = np.argwhere(differ)[0]
@@ -169,8 +170,6 @@ def demonstrate_with_labels_of(task_name: str, path: str) -> dict:
         if made.get("behaviour") is not None:
             raise ValueError(f"its states are those {made['behaviour']} visited reading its own task's observations "
                              f"(DAgger): they cannot be re-run on another task")
-        if "labels_from" in made:
-            raise ValueError(f"it re-runs {made['labels_from']}: give that file")
         seasons = np.arange(made["seasons"][0], made["seasons"][1] + 1)
     scenario, pool_seasons = _training_seasons(task_name, seasons)
     teacher = _LabelsOfFile(path, data, pool_seasons)
