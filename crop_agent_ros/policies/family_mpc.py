@@ -30,9 +30,8 @@ This mean of plans (``mean-plan``) is one of three planners (:data:`METHODS`); `
 (:mod:`crop_agent_ros.policies.family_hindsight`) shares one decision a day across the continuations and
 removes more of the rule's regret; ``expected-value`` (:mod:`crop_agent_ros.policies.family_expected`, the
 default) makes that decision from values that average over the weather inside one programme and removes more
-again. :func:`planner` builds each
-from its settings; the command line runs one on a set of an evaluation, beside that evaluation's oracle and
-rule:
+again. :func:`planner` builds each from its settings; the command line runs one on a set of an evaluation,
+beside that evaluation's oracle and rule:
 
     python -m crop_agent_ros.policies.family_mpc [--method hindsight-value|mean-plan|expected-value] \\
         --table results/family/benton-quota/table.json --set heldout-real [--seasons 0..4] [--scenarios K] \\
