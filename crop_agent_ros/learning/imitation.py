@@ -162,10 +162,7 @@ def demonstrate_with_labels_of(task_name: str, path: str) -> dict:
     seasons, seed and executed noise, the file's labels (:class:`_LabelsOfFile`; no planning), this task's
     observations. For a task that differs from the file's only in its PAW sensor (the planners read none)."""
     with user_input(f"--labels-from {path}", (OSError, ValueError, KeyError)):
-        with np.load(path) as data:
-            if str(data["format"]) != FORMAT:
-                raise ValueError(f"not a demonstrations file ({FORMAT!r})")
-            data = {k: data[k] for k in ("observations", "mm", "season", "day", "settings")}
+        data = _read(path, ("observations", "mm", "season", "day", "settings"))
         made = json.loads(str(data["settings"]))
         if made.get("behaviour") is not None:
             raise ValueError(f"its states are those {made['behaviour']} visited reading its own task's observations "
@@ -208,6 +205,15 @@ def _record(task_name, scenario, seasons, pool_seasons, teacher, action_noise_mm
                                     "wall_s": round(time.perf_counter() - began, 1)})}
 
 
+def _read(path: str, keys: tuple[str, ...]) -> dict:
+    """The arrays ``keys`` of demonstrations file ``path`` (ValueError if it is not one; OSError/KeyError as
+    numpy raises them)."""
+    with np.load(path) as data:
+        if str(data["format"]) != FORMAT:
+            raise ValueError(f"not a demonstrations file ({FORMAT!r})")
+        return {k: data[k] for k in keys}
+
+
 def load_demonstrations(patterns: list[str], task_name: str) -> dict:
     """The demonstration files matching ``patterns`` (globs), concatenated; each must be of ``task_name``."""
     import glob
@@ -217,13 +223,11 @@ def load_demonstrations(patterns: list[str], task_name: str) -> dict:
     parts = []
     for number, path in enumerate(paths):
         with user_input(f"--imitate {path}", (OSError, ValueError, KeyError)):
-            with np.load(path) as data:
-                if str(data["format"]) != FORMAT:
-                    raise ValueError(f"not a demonstrations file ({FORMAT!r})")
-                if str(data["task"]) != task_name:
-                    raise ValueError(f"demonstrations of {str(data['task'])!r}, not of {task_name!r}")
-                part = {k: data[k] for k in ("observations", "mm", "season", "day")}
-                part["file"] = np.full(len(part["mm"]), number)
+            data = _read(path, ("task", "observations", "mm", "season", "day"))
+            if str(data["task"]) != task_name:
+                raise ValueError(f"demonstrations of {str(data['task'])!r}, not of {task_name!r}")
+            part = {k: data[k] for k in ("observations", "mm", "season", "day")}
+            part["file"] = np.full(len(part["mm"]), number)
         if not (np.all(np.isfinite(part["observations"])) and np.all(np.isfinite(part["mm"]))
                 and np.all(part["mm"] >= 0.0)):
             raise UsageError(f"--imitate {path}: observations and mm must be finite, mm >= 0")

@@ -33,7 +33,7 @@ default) makes that decision from values that average over the weather inside on
 again. :func:`planner` builds each from its settings; the command line runs one on a set of an evaluation,
 beside that evaluation's oracle and rule:
 
-    python -m crop_agent_ros.policies.family_mpc [--method hindsight-value|mean-plan|expected-value] \\
+    python -m crop_agent_ros.policies.family_mpc [--method expected-value|hindsight-value|mean-plan] \\
         --table results/family/benton-quota/table.json --set heldout-real [--seasons 0..4] [--scenarios K] \\
         [--decision-every-days 7] [--out FILE.json]
 
