@@ -97,3 +97,77 @@ def test_training_refuses_the_papers_task_and_real_seasons(tmp_path):
         args = parser.parse_args(["--task", task, "--out", str(tmp_path / "x"), "--timesteps", "64"])
         with pytest.raises(SystemExit, match=message):
             train_task(args)
+
+
+def _sensing_season(fields: int = 6, days: int = 120):
+    """benton-sensing's observations of ``fields`` fields over ``days`` days under 3 mm a day, with the true
+    PAW (mm) of each field-day."""
+    from crop_sim_ros.task import IrrigationVectorEnv, get_scenario
+    env = IrrigationVectorEnv(fields, get_scenario("benton-sensing"))
+    obs, info = env.reset(seed=4)
+    seen, truth = [obs], [info["true_paw_mm"]]
+    for _ in range(days):
+        obs, _, _, _, info = env.step(np.full(fields, 3.0))
+        seen.append(obs)
+        truth.append(info["true_paw_mm"])
+    return np.stack(seen), np.stack(truth)
+
+
+def test_the_soil_water_filter_knowing_the_sensor_error_is_closer_to_the_truth_than_the_readings():
+    """On benton-sensing (10 mm noise, a third of the readings missing) the filter that knows the sensor's
+    error is at most half the readings' error from the true PAW; with no sensor error it is the rule's
+    checkbook: the reading where there is one."""
+    from crop_agent_ros.policies.family import FarmFacts, SoilWaterFilter
+    from crop_sim_ros.task import get_scenario
+    from crop_sim_ros.task.layout import EXTENDED
+    obs, truth = _sensing_season()
+    paw, seen = EXTENDED.index("paw_mm"), obs[..., EXTENDED.index("paw_observed")] > 0.5
+    capacity = FarmFacts.of_scenario(get_scenario("benton-sensing")).capacity_mm
+    kalman, checkbook = SoilWaterFilter(capacity, sensor_sd_mm=10.0), SoilWaterFilter(capacity)
+    estimates = np.stack([kalman.update(day) for day in obs])
+    plain = np.stack([checkbook.update(day) for day in obs])
+    reading_error = np.sqrt(np.mean((obs[..., paw][seen] - truth[seen]) ** 2))
+    filter_error = np.sqrt(np.mean((estimates - truth) ** 2))
+    assert 8.0 < reading_error < 12.0 and filter_error < 0.5 * reading_error
+    np.testing.assert_array_equal(plain[seen], obs[..., paw][seen])
+    assert np.all(estimates[0] == capacity)  # the sowing day: SIMPLE starts full
+    kalman.reset()
+    np.testing.assert_array_equal(np.stack([kalman.update(day) for day in obs]), estimates)
+    with pytest.raises(ValueError, match="sensor_sd_mm >= 0"):
+        SoilWaterFilter(capacity, sensor_sd_mm=-1.0)
+
+
+def test_an_agent_with_the_soil_water_filter_sees_its_estimate_and_loads_with_it(tmp_path):
+    from crop_agent_ros.policies.rollout import run_episodes
+    summary, out = _train(tmp_path, "--paw-filter", "--history", "2")
+    config = json.loads((out / "model.json").read_text())
+    assert config["paw_filter"]["sensor_sd_mm"] == 10.0 and config["paw_filter"]["capacity_mm"] > 0
+    policy = LearnedPolicy(out / "model.zip")
+    assert policy.interface.input_size == 2 * EXTENDED.size + 1
+    assert policy.describe()["paw_filter"] == config["paw_filter"]
+    episodes = run_episodes(policy, "benton-sensing", np.arange(2), seed=0)
+    assert np.all(np.isfinite(episodes.episode_return))
+    obs, _ = _sensing_season(fields=2, days=3)
+    policy.reset()
+    inputs = [policy.interface.observe(day)[0] for day in obs]
+    from crop_agent_ros.policies.family import SoilWaterFilter
+    reference = SoilWaterFilter(**config["paw_filter"])
+    for day, seen in zip(obs, inputs):
+        np.testing.assert_allclose(seen[:, -1], reference.update(day) / config["paw_filter"]["capacity_mm"] * 2 - 1,
+                                   rtol=1e-6)
+    config["paw_filter"] = {"capacity_mm": -5.0, "sensor_sd_mm": 10.0}
+    (out / "model.json").write_text(json.dumps(config))
+    with pytest.raises(ValueError, match="paw_filter .*capacity_mm must be > 0"):
+        LearnedPolicy(out / "model.zip")
+
+
+def test_the_family_agents_options_are_refused_on_the_papers_task(tmp_path):
+    from crop_agent_ros import train
+    from crop_sim_ros.usage import UsageError
+    parser = argparse.ArgumentParser()
+    train.add_arguments(parser)
+    for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
+                        (["--imitate", "x.npz"], "--imitate")):
+        args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
+        with pytest.raises(UsageError, match=f"{flag}: with --task only"):
+            train.run(args)

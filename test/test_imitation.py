@@ -151,6 +151,32 @@ def test_with_a_history_the_inputs_are_the_stacks_the_agent_sees():
         imitation.network_inputs(AgentInterface(scaler, 3, "mm"), gap)
 
 
+def test_with_the_soil_water_filter_the_inputs_are_what_the_agent_computes_day_by_day():
+    """The same shuffled demonstrations with a filter (and no history): each sample's last input is the
+    filter's estimate after that season's observations up to its day, as the agent computes it online;
+    seasons of different lengths run side by side."""
+    from crop_agent_ros.policies.family import SoilWaterFilter
+    obs = _observations(seasons=3)[:3 * 20]
+    season, day = np.tile([7, 8, 7], 20), obs[:, DAY]
+    file = np.tile([0, 0, 1], 20)
+    keep = ~((season == 8) & (day >= 15))  # season 8 ends early
+    data = {"observations": obs[keep], "mm": day[keep], "season": season[keep], "day": day[keep].astype(int),
+            "file": file[keep], "files": ["a.npz", "b.npz"]}
+    shuffle = np.random.default_rng(1).permutation(int(keep.sum()))
+    shuffled = {k: (v[shuffle] if isinstance(v, np.ndarray) else v) for k, v in data.items()}
+    scaler = ObservationScaler.fit(obs)
+    paw_filter = SoilWaterFilter(120.0, sensor_sd_mm=10.0)
+    inputs, order = imitation.network_inputs(AgentInterface(scaler, 1, "mm", paw_filter=paw_filter), shuffled)
+    assert inputs.shape == (int(keep.sum()), EXTENDED.size + 1)
+    agent = AgentInterface(scaler, 1, "mm", paw_filter=SoilWaterFilter(120.0, sensor_sd_mm=10.0))
+    expected = np.concatenate([agent.observe(obs[3 * t:3 * t + 3])[0] for t in range(20)])[keep]
+    for position, row in enumerate(shuffle[order]):
+        np.testing.assert_allclose(inputs[position], expected[row], rtol=1e-6)
+    gap = {**shuffled, "day": np.where(shuffled["day"] == 5, 6, shuffled["day"])}
+    with pytest.raises(UsageError, match="the soil-water filter needs them"):
+        imitation.network_inputs(AgentInterface(scaler, 1, "mm", paw_filter=paw_filter), gap)
+
+
 def test_bad_demonstration_files_are_refused(tmp_path, demonstrations):
     good = tmp_path / "good.npz"
     np.savez_compressed(good, **demonstrations)

@@ -239,12 +239,13 @@ def network_inputs(interface, demonstrations: dict) -> tuple[np.ndarray, np.ndar
     """(S, input_size) network inputs of the demonstrations as the agent would have seen them, and the order
     of the samples they are in. With a history of k days each input is the last k scaled observations of the
     same season of the same file, newest last, a season's first observation repeated before its start (as
-    :class:`~crop_agent_ros.learning.agent.History` stacks them); a season's days must run 0, 1, 2, ..."""
-    scaled = interface.scaler(demonstrations["observations"].astype(float))
+    :class:`~crop_agent_ros.learning.agent.History` stacks them); with a soil-water filter, the filter's
+    estimate after the season's observations up to that day; a season's days must run 0, 1, 2, ..."""
+    raw = demonstrations["observations"].astype(float)
     k = interface.history.k
     order = np.lexsort((demonstrations["day"], demonstrations["season"], demonstrations["file"]))
-    if k == 1:
-        return scaled[order], order
+    if k == 1 and interface.paw_filter is None:
+        return interface.scaler(raw)[order], order
     day = demonstrations["day"][order]
     episode = np.stack([demonstrations["file"][order], demonstrations["season"][order]])
     starts = np.r_[True, np.any(episode[:, 1:] != episode[:, :-1], axis=0)]
@@ -252,12 +253,35 @@ def network_inputs(interface, demonstrations: dict) -> tuple[np.ndarray, np.ndar
     broken = day != np.arange(len(day)) - first_row
     if broken.any():
         row = order[np.argmax(broken)]
+        needs = f"a history of {k} days" if k > 1 else "the soil-water filter"
         raise UsageError(f"--imitate: season {demonstrations['season'][row]} of "
                          f"{demonstrations['files'][demonstrations['file'][row]]} does not hold consecutive days from "
-                         f"day 0 (a history of {k} days needs them)")
-    rows, ordered = np.arange(len(day)), scaled[order]
+                         f"day 0 ({needs} needs them)")
+    rows, ordered = np.arange(len(day)), interface.scaler(raw[order])
     lagged = [ordered[rows - np.minimum(lag, day)] for lag in range(k - 1, -1, -1)]  # oldest first
-    return np.concatenate(lagged, axis=1), order
+    paw_mm = None
+    if interface.paw_filter is not None:
+        paw_mm = _filtered(interface.paw_filter, raw[order], np.cumsum(starts) - 1, day)
+    return interface._inputs(np.concatenate(lagged, axis=1), paw_mm, None), order
+
+
+def _filtered(paw_filter, raw: np.ndarray, episode: np.ndarray, day: np.ndarray) -> np.ndarray:
+    """The filter's estimate (mm) on each row of ``raw`` (rows grouped by ``episode`` 0..E-1, each's days
+    0, 1, 2, ... in order): all episodes run at once as the filter's fields, one day per update (an episode
+    that has ended repeats its last row, whose estimates are not used)."""
+    import copy
+    episodes, days = int(episode[-1]) + 1, int(day.max()) + 1
+    grid = np.full((episodes, days), -1)
+    grid[episode, day] = np.arange(len(day))
+    last = np.maximum.accumulate(grid, axis=1)  # an ended episode's last row
+    running = copy.deepcopy(paw_filter)
+    running.reset()
+    estimate = np.empty(len(day))
+    for d in range(days):
+        present = grid[:, d] >= 0
+        today = running.update(raw[last[:, d]])
+        estimate[grid[present, d]] = today[present]
+    return estimate
 
 
 def clone(model, interface, demonstrations: dict, epochs: int, seed: int, learning_rate: float = 1e-3,

@@ -42,6 +42,9 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--action", default="mm", choices=ACTION_KINDS,
                         help="with --task: mm (the headline agent: a in [-1, 1] -> 0..25 mm) or residual (a variant: "
                              f"the tuned rule's mm + a x {RESIDUAL_SPAN_MM:g} mm, clipped to 0..25 mm)")
+    parser.add_argument("--paw-filter", action="store_true",
+                        help="with --task: the network also sees a PAW estimate, the checkbook corrected by each "
+                             "reading (a Kalman filter knowing the task's sensor error; a labelled feature)")
     parser.add_argument("--imitate", nargs="+", default=None, metavar="GLOB",
                         help="with --task: first fit the policy to these demonstrations of the causal MPC "
                              "(`crop-sim demonstrate`; behaviour cloning), then PPO on the reward (a variant)")
@@ -135,7 +138,7 @@ def train_task(args) -> dict:
     import torch
     from crop_sim_ros.task import core
     from crop_sim_ros.task.scenario import get_scenario
-    from ..policies.family import FarmFacts, WaterBudgetRule
+    from ..policies.family import FarmFacts, SoilWaterFilter, WaterBudgetRule
     from ..policies.family_tuning import draw_terms, rule_file, rule_record, tuned_rule
     from ..policies.rollout import run_episodes
     from .agent import LearnedPolicy
@@ -162,7 +165,11 @@ def train_task(args) -> dict:
         except FileNotFoundError as error:
             from crop_sim_ros.usage import UsageError
             raise UsageError(f"--action residual corrects the task's tuned rule: {error}") from None
-    interface = AgentInterface(scaler, args.history, action_kind, rule)
+    paw_filter = None
+    if getattr(args, "paw_filter", False):
+        # the sensor's stated error is the task's PAW noise (a farmer knows the probe's specification)
+        paw_filter = SoilWaterFilter(FarmFacts.of_scenario(scenario).capacity_mm, scenario.noise.paw_mm)
+    interface = AgentInterface(scaler, args.history, action_kind, rule, paw_filter)
     venv = training_env(scenario, args.n_envs, args.seed, interface, float(params.fields.harvest_index[0]),
                         params.dry_matter_fraction)
     lr0, lr1 = args.learning_rate, args.final_learning_rate
@@ -218,6 +225,7 @@ def train_task(args) -> dict:
                          f"the network also sees the rule's mm / {RESIDUAL_SPAN_MM:g}"),
               **({} if rule is None else {"rule": {**rule_record(rule), "file": rule_file(scenario.name).name}}),
               **({} if imitation is None else {"imitation": imitation}),
+              **({} if paw_filter is None else {"paw_filter": paw_filter.record()}),
               "scaler": {"mean": list(scaler.mean), "std": list(scaler.std)},
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",
               "hyper_parameters": {k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "n_steps",
