@@ -114,6 +114,10 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
     assert err.count("\n") == 1 and "'far-nowhere' is not in the table" in err
     assert fm.main(["--table", str(table), "--set", "heldout-real", "--scenarios", "0"]) == 2
     assert "scenarios" in capsys.readouterr().err
+    assert fm.main(["--table", str(table), "--set", "maricopa-real", "--continuations", "atlantis"]) == 2
+    assert "no weather generator 'atlantis' (fitted: benton, gainesville, maricopa)" in capsys.readouterr().err
+    assert fm.pool_generator_of("maricopa-generated") == "maricopa"
+    assert fm.pool_generator_of("maricopa-generated", "gainesville") == "gainesville"
     (tmp_path / "list.json").write_text("[1, 2]")
     assert fm.main(["--table", str(tmp_path / "list.json"), "--set", "heldout-real"]) == 2
     assert "is not a table.json" in capsys.readouterr().err

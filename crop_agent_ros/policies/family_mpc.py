@@ -256,9 +256,16 @@ def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], set
 
 # --- command line: a planner on an evaluated set, beside the oracle and the rule of that evaluation ----------
 
-def pool_generator_of(set_name: str) -> str:
-    """The weather generator whose climatology the MPC draws continuations from on an evaluation set: the
-    site's own (the held-out real seasons are Benton County's)."""
+def pool_generator_of(set_name: str, asked: str | None = None) -> str:
+    """The weather generator whose climatology the MPC draws continuations from on an evaluation set:
+    ``asked`` (one of the fitted generators), else the site's own (the held-out real seasons are Benton
+    County's). Asking for another site's shows what a planner that knows only that climate does here (e.g. a
+    training climate's on the held-out one)."""
+    if asked is not None:
+        from crop_sim_ros.weather.generator import GENERATOR_NAMES
+        if asked not in GENERATOR_NAMES:
+            raise ValueError(f"--continuations: no weather generator {asked!r} (fitted: {', '.join(GENERATOR_NAMES)})")
+        return asked
     if set_name.startswith("far-"):
         return set_name[len("far-"):]
     if set_name.startswith("maricopa-"):
@@ -275,10 +282,11 @@ def _bootstrap_mean(values: np.ndarray, rng: np.random.Generator, resamples: int
 
 
 def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, settings,
-                       resamples: int = 2000, log=print) -> dict:
+                       resamples: int = 2000, log=print, continuations: str | None = None) -> dict:
     """Run a planner (``settings``: :class:`MpcSettings` or ``HindsightSettings``; the summary's keys say
     ``mpc`` for either) on ``set_name`` of an evaluation ``table`` (``crop-sim evaluate --task``'s table.json) with
-    that evaluation's terms, and compare it with the table's oracle and rule on the same seasons (USD/ha).
+    that evaluation's terms, and compare it with the table's oracle and rule on the same seasons (USD/ha);
+    its continuations are drawn from ``continuations``' generator (:func:`pool_generator_of`).
     The rule's return per season is its mean over the table's noise seeds (the planners read no noisy value:
     its return does not depend on the noise seed). Intervals: 95 % bootstrap over seasons, paired."""
     from crop_sim_ros.task.scenario import get_scenario
@@ -295,7 +303,7 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     if index.size == 0 or index.max() >= len(entry["seasons"]):
         raise ValueError(f"--seasons: {set_name} has seasons 0..{len(entry['seasons']) - 1}")
     terms = {name: np.asarray(values, dtype=float)[index] for name, values in entry["terms"].items()}
-    generator = pool_generator_of(set_name)
+    generator = pool_generator_of(set_name, continuations)
     pools = continuation_pool(get_scenario(f"{generator}-generated", task.data_dir), settings.scenarios)
     mpc = planner(TaskConstants.of_scenario(evaluation_set.scenario), pools, settings)
     began = time.perf_counter()
@@ -371,6 +379,9 @@ def main(argv=None) -> int:
                              "continuation's best plan")
     parser.add_argument("--scenarios", type=int, help="continuations per decision (default: the planner's, 4 or 8)")
     parser.add_argument("--decision-every-days", type=int, help="days between decisions (default: 7)")
+    parser.add_argument("--continuations", metavar="GENERATOR",
+                        help="draw the continuations from this site's weather generator (default: the set's own "
+                             "site, e.g. maricopa on maricopa-generated)")
     parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
     parser.add_argument("--paired", nargs=2, metavar=("BASE", "OTHER"),
                         help="run nothing: compare two --out files of one task and set, season by season")
@@ -390,7 +401,8 @@ def main(argv=None) -> int:
                 raise ValueError(f"--table: {args.table} is not a table.json of `crop-sim evaluate --task`")
             settings = planner_settings(args.method, args.scenarios, args.decision_every_days)
             seasons = None if args.seasons is None else season_range(args.seasons)
-            summary = compare_with_table(table, args.set, seasons, settings)
+            pool_generator_of(args.set, args.continuations)  # a bad name is refused before any planning
+            summary = compare_with_table(table, args.set, seasons, settings, continuations=args.continuations)
     except (OSError, ValueError, KeyError) as error:
         print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
         return 2
