@@ -88,7 +88,7 @@ def test_a_policy_file_with_other_spaces_is_refused_at_load(tmp_path):
         LearnedPolicy(out / "model.zip")
 
 
-def test_training_refuses_the_papers_task_and_real_seasons(tmp_path):
+def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_path):
     from crop_agent_ros import train
     from crop_agent_ros.learning.train_task import train_task
     parser = argparse.ArgumentParser()
@@ -97,6 +97,13 @@ def test_training_refuses_the_papers_task_and_real_seasons(tmp_path):
         args = parser.parse_args(["--task", task, "--out", str(tmp_path / "x"), "--timesteps", "64"])
         with pytest.raises(SystemExit, match=message):
             train_task(args)
+    # the family agent's options on the paper's task (no --task) are refused, not ignored
+    from crop_sim_ros.usage import UsageError
+    for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
+                        (["--imitate", "x.npz"], "--imitate")):
+        args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
+        with pytest.raises(UsageError, match=f"{flag}: with --task only"):
+            train.run(args)
 
 
 def _sensing_season(fields: int = 6, days: int = 120):
@@ -159,15 +166,3 @@ def test_an_agent_with_the_soil_water_filter_sees_its_estimate_and_loads_with_it
     (out / "model.json").write_text(json.dumps(config))
     with pytest.raises(ValueError, match="paw_filter .*capacity_mm must be > 0"):
         LearnedPolicy(out / "model.zip")
-
-
-def test_the_family_agents_options_are_refused_on_the_papers_task(tmp_path):
-    from crop_agent_ros import train
-    from crop_sim_ros.usage import UsageError
-    parser = argparse.ArgumentParser()
-    train.add_arguments(parser)
-    for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
-                        (["--imitate", "x.npz"], "--imitate")):
-        args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
-        with pytest.raises(UsageError, match=f"{flag}: with --task only"):
-            train.run(args)
