@@ -147,7 +147,7 @@ class AgentInterface:
         """The filter's PAW estimates (N,) mm as the network sees them: (estimate / capacity) x 2 - 1."""
         return np.asarray(paw_mm, dtype=float) / self.paw_filter.capacity_mm * 2.0 - 1.0
 
-    def _inputs(self, stacked: np.ndarray, paw_mm: np.ndarray | None, rule_mm: np.ndarray | None) -> np.ndarray:
+    def network_input(self, stacked: np.ndarray, paw_mm: np.ndarray | None, rule_mm: np.ndarray | None) -> np.ndarray:
         """The network's input: the (scaled, stacked) observations, then the filter's estimate, then the rule's
         proposal, each where the interface has one."""
         parts = [stacked]
@@ -174,12 +174,12 @@ class AgentInterface:
             paw_last = None if self.paw_filter is None else copy.deepcopy(self.paw_filter).update(last)
             for i in rows:
                 repeated = np.tile(self.scaler(last[i])[0], self.history.k)[None, :]
-                terminal_inputs[i] = self._inputs(repeated, None if paw_last is None else paw_last[[i]],
+                terminal_inputs[i] = self.network_input(repeated, None if paw_last is None else paw_last[[i]],
                                                   None if rule_last is None else rule_last[[i]])[0]
         stacked = self.history.push(self.scaler(raw), raw[:, DAY])
         paw_mm = None if self.paw_filter is None else self.paw_filter.update(raw)
         self._rule_mm = None if self.rule is None else np.asarray(self.rule.act(raw), dtype=float).reshape(-1)
-        return self._inputs(stacked, paw_mm, self._rule_mm), terminal_inputs
+        return self.network_input(stacked, paw_mm, self._rule_mm), terminal_inputs
 
     def to_mm(self, action: np.ndarray) -> np.ndarray:
         """The network's action for the day last observed -> irrigation mm (N,)."""

@@ -36,6 +36,7 @@ error there was least (early stopping; else the last epoch).
 
 from __future__ import annotations
 
+import copy
 import json
 import sys
 import time
@@ -262,14 +263,13 @@ def network_inputs(interface, demonstrations: dict) -> tuple[np.ndarray, np.ndar
     paw_mm = None
     if interface.paw_filter is not None:
         paw_mm = _filtered(interface.paw_filter, raw[order], np.cumsum(starts) - 1, day)
-    return interface._inputs(np.concatenate(lagged, axis=1), paw_mm, None), order
+    return interface.network_input(np.concatenate(lagged, axis=1), paw_mm, None), order
 
 
 def _filtered(paw_filter, raw: np.ndarray, episode: np.ndarray, day: np.ndarray) -> np.ndarray:
     """The filter's estimate (mm) on each row of ``raw`` (rows grouped by ``episode`` 0..E-1, each's days
     0, 1, 2, ... in order): all episodes run at once as the filter's fields, one day per update (an episode
     that has ended repeats its last row, whose estimates are not used)."""
-    import copy
     episodes, days = int(episode[-1]) + 1, int(day.max()) + 1
     grid = np.full((episodes, days), -1)
     grid[episode, day] = np.arange(len(day))

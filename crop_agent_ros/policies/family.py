@@ -86,8 +86,8 @@ class SoilWaterFilter:
     day's (N, 29) observations once, in order; a field whose day is 0 starts a new season."""
 
     # What the checkbook misses in a day: its one-step error against benton-quota's readings (1 mm sensor)
-    # over 13,700 field-days of the expected-value planner's demonstrations is 1.4 mm (sd), that reading
-    # error included.
+    # over the 100 seasons of the expected-value planner's benton-quota-expected-000-099.npz is 1.4 mm (sd),
+    # that reading error included.
     PROCESS_SD_MM = 1.0
 
     def __init__(self, capacity_mm: float, sensor_sd_mm: float = 0.0, process_sd_mm: float = PROCESS_SD_MM):
@@ -102,7 +102,9 @@ class SoilWaterFilter:
         self.reset()
 
     def reset(self) -> None:
-        self._estimate_mm: np.ndarray | None = None
+        self._estimate_mm: np.ndarray | None = None  # (N,) mm, yesterday's estimate
+        self._variance_mm2: np.ndarray | None = None  # (N,) mm^2, its error variance
+        self._yesterday: np.ndarray | None = None  # (N, 2): yesterday's rain mm and ET0 mm
 
     def record(self) -> dict:
         return {"capacity_mm": self.capacity_mm, "sensor_sd_mm": self.sensor_sd_mm,
@@ -116,7 +118,7 @@ class SoilWaterFilter:
         if self._estimate_mm is None or len(self._estimate_mm) != len(obs):
             self._estimate_mm = np.full(len(obs), self.capacity_mm)
             self._variance_mm2 = np.zeros(len(obs))
-            self._yesterday = np.zeros((len(obs), 2))  # rain mm, ET0 mm
+            self._yesterday = np.zeros((len(obs), 2))
         rain, et0 = self._yesterday[:, 0], self._yesterday[:, 1]
         water = self._estimate_mm + rain + obs[:, _COL["irrigation_yesterday_mm"]]
         water = water - np.minimum(et0, UPTAKE_PER_DAY * water)
