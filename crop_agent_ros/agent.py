@@ -14,9 +14,9 @@ from std_msgs.msg import Float32MultiArray, Float64MultiArray
 
 from crop_sim_ros import ros_interface as ri
 
+from .policies import NODE_POLICIES
 from .sim_client import UNCHANGED, SimClient, scenario_layout
 
-POLICIES = ("zero", "constant", "best-constant", "refill", "ppo", "budget-rule", "agent")
 NODE_NAME = "crop_agent"
 
 
@@ -37,7 +37,7 @@ S, D, I, B = (ParameterType.PARAMETER_STRING, ParameterType.PARAMETER_DOUBLE, Pa
               ParameterType.PARAMETER_BOOL)
 PARAMETERS = {
     "sim_node": ("/" + ri.NODE_NAME, _descriptor(S, "fully qualified name of the simulator node")),
-    "policy": ("refill", _descriptor(S, "irrigation policy", constraints=" | ".join(POLICIES))),
+    "policy": ("refill", _descriptor(S, "irrigation policy", constraints=" | ".join(NODE_POLICIES))),
     "policy_file": ("", _descriptor(S, "policy ppo: Stable-Baselines3 PPO .zip ('' = the shipped ppo_benton.zip); "
                                        "policy agent: a family agent's model.zip (model.json beside it), required")),
     "task": ("", _descriptor(S, "policy budget-rule: the family task whose tuned rule to use, e.g. benton-quota ('' "
@@ -57,8 +57,8 @@ def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.
     name or a missing parameter, FileNotFoundError for a missing policy or rule file."""
     from .policies import ConstantPolicy, make_policy  # noqa: PLC0415
 
-    if kind not in POLICIES:
-        raise ValueError(f"unknown policy {kind!r}; known: {', '.join(POLICIES)}")
+    if kind not in NODE_POLICIES:
+        raise ValueError(f"unknown policy {kind!r}; known: {', '.join(NODE_POLICIES)}")
     if kind == "constant":
         return ConstantPolicy(constant_mm)
     if kind == "ppo":

@@ -1,11 +1,13 @@
 """Grow a season over ROS 2 with one command: start the simulator node and an agent node as two processes,
 let the agent drive the season(s), print the summary, stop both.
 
-    python -m crop_agent_ros.run_farm [--policy ppo|refill|best-constant|constant|zero] [--seasons 1] [--scenario NAME]
-                                      [--seed 0] [--log season.csv]
+    python -m crop_agent_ros.run_farm [--policy ppo|refill|best-constant|constant|zero|budget-rule|agent]
+                                      [--policy-file F] [--seasons 1] [--scenario NAME] [--seed 0] [--log season.csv]
 
 Defaults: the shipped PPO policy (``crop_agent_ros/policies/ppo_benton.zip``) on the embedded default
-scenario ``benton-generated`` (no data file needed), seed 0. Both nodes run on a private ROS_DOMAIN_ID
+scenario ``benton-generated`` (no data file needed), seed 0. On a family task (``--scenario benton-quota``, ...)
+``--policy budget-rule`` is that task's tuned rule and ``--policy agent --policy-file .../model.zip`` a family
+agent (``crop-sim train --task``). Both nodes run on a private ROS_DOMAIN_ID
 with discovery kept on this machine, so nothing else on the network sees them (``--domain-id`` to choose).
 On a ROS 2 machine the same job is ``ros2 launch crop_sim_ros farm.launch.py``.
 
@@ -28,6 +30,7 @@ from pathlib import Path
 
 from crop_sim_ros.usage import EXIT_USAGE, UsageError
 
+from .policies import NODE_POLICIES
 from .ros_process import NodeProcess, isolated_ros_env, pick_domain_id
 
 SUMMARY_PREFIX = "season summary: "
@@ -43,10 +46,12 @@ class Interrupted(BaseException):
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--policy", default="ppo", choices=("ppo", "refill", "best-constant", "constant", "zero"),
-                        help="the agent's policy (default: the shipped PPO policy)")
+    parser.add_argument("--policy", default="ppo", choices=NODE_POLICIES,
+                        help="the agent's policy (default: the shipped PPO policy; budget-rule: the family task's "
+                             "tuned rule; agent: a family agent, --policy-file)")
     parser.add_argument("--policy-file", default="", help="policy ppo: a Stable-Baselines3 PPO .zip "
-                        "(default: the shipped crop_agent_ros/policies/ppo_benton.zip)")
+                        "(default: the shipped crop_agent_ros/policies/ppo_benton.zip); policy agent: a family "
+                        "agent's model.zip (required)")
     parser.add_argument("--constant-mm", type=float, default=10.0, help="policy constant: mm per day (default 10)")
     parser.add_argument("--seasons", type=int, default=1, help=f"seasons to grow (default 1, at most {MAX_SEASONS})")
     parser.add_argument("--scenario", default="benton-generated", help="scenario name or YAML path "
@@ -89,6 +94,8 @@ def run(args) -> int:
         raise UsageError(f"--timeout: {args.timeout} s is not positive")
     if args.policy_file and not Path(args.policy_file).expanduser().is_file():
         raise UsageError(f"--policy-file: {args.policy_file} is not a file")
+    if args.policy == "agent" and not args.policy_file:
+        raise UsageError("--policy agent needs --policy-file (a family agent's model.zip)")
     _set_signal_handlers(_interrupt)
     try:
         return _grow(args)
@@ -190,7 +197,10 @@ def plot_season_log(log: Path, png: Path) -> Path:
     axes[0].plot(day, column("obs_biomass_t_ha"), ".", markersize=2, label="observed (noisy)")
     axes[0].set_ylabel("biomass, t/ha")
     axes[1].plot(end_of_day, column("end_true_paw_mm"), label="true")
-    axes[1].plot(day, column("obs_paw_mm"), ".", markersize=2, label="observed (noisy)")
+    paw = column("obs_paw_mm")
+    if last[0].get("obs_paw_observed"):  # a family task logs a missing reading as 0 mm with its flag at 0
+        paw = [value if seen > 0.5 else float("nan") for value, seen in zip(paw, column("obs_paw_observed"))]
+    axes[1].plot(day, paw, ".", markersize=2, label="observed (noisy; none where the reading is missing)")
     axes[1].set_ylabel("PAW, mm")
     axes[2].bar(day, column("rain_mm"), color="tab:blue", label="rain")
     axes[2].bar(day, column("irrigation_mm"), bottom=column("rain_mm"), color="tab:green", label="irrigation")

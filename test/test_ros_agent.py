@@ -73,6 +73,24 @@ def test_run_farm_grows_a_season_over_ros(tmp_path, policy):
     assert log.with_suffix(".png").stat().st_size > 10_000  # the plot of the season
 
 
+def test_run_farm_grows_a_family_season_with_a_committed_agent(tmp_path):
+    """`crop-sim farm --policy agent`: a committed family agent (the imitation variant that also sees the
+    soil-water filter's estimate) drives a benton-sensing season over ROS; the agent node feeds the filter
+    from the readings it receives (a missing one as NaN), and the season stays within the farm's quota."""
+    log = tmp_path / "season.csv"
+    agent = ros_support.REPO / "results/family/agents/benton-sensing-imitation-expected-filter-dagger2-s0/model.zip"
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.run_farm", "--policy", "agent", "--policy-file",
+                           str(agent), "--scenario", "benton-sensing", "--json", "--no-plot", "--log", str(log),
+                           "--domain-id", str(isolated_ros_env()["ROS_DOMAIN_ID"])],
+                          env=isolated_ros_env(), capture_output=True, text=True, timeout=300, cwd=ros_support.REPO)
+    assert done.returncode == 0, done.stdout + done.stderr
+    (summary,) = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
+    assert summary["policy"] == "agent" and summary["matured"] and summary["yield_t_ha"] > 10
+    rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == summary["episode"]]
+    assert len(rows) == summary["days"] and 0.0 < summary["irrigation_mm"] <= float(rows[0]["term_quota_mm"]) + 1e-6
+    assert any(float(r["obs_paw_observed"]) == 0.0 for r in rows)  # the agent met missing readings
+
+
 def wait_for(condition, timeout: float, what: str, step: float = 0.01) -> None:
     deadline = time.monotonic() + timeout
     while not condition():

@@ -16,6 +16,9 @@ from .base import OBS_SIZE, BasePolicy, Policy, SeasonContext
 from .rules import ConstantPolicy, DemandMarginPolicy, RefillPolicy, ZeroPolicy, best_constant_policy, tuned_refill_policy
 
 POLICY_NAMES = ("zero", "constant10", "best-constant", "refill", "ppo", "oracle")
+# What an agent node (and `crop-sim farm`) runs: the paper task's policies above (constant: constant_mm), a
+# family task's tuned rule (budget-rule) or a family agent's policy file (agent).
+NODE_POLICIES = ("zero", "constant", "best-constant", "refill", "ppo", "budget-rule", "agent")
 
 
 def make_policy(name: str, ppo_path: str | None = None) -> BasePolicy:
@@ -44,5 +47,5 @@ def make_policy(name: str, ppo_path: str | None = None) -> BasePolicy:
                      "ppo:<path.zip>")
 
 
-__all__ = ["OBS_SIZE", "POLICY_NAMES", "BasePolicy", "ConstantPolicy", "DemandMarginPolicy", "Policy", "RefillPolicy", "SeasonContext",
+__all__ = ["NODE_POLICIES", "OBS_SIZE", "POLICY_NAMES", "BasePolicy", "ConstantPolicy", "DemandMarginPolicy", "Policy", "RefillPolicy", "SeasonContext",
            "ZeroPolicy", "best_constant_policy", "make_policy", "tuned_refill_policy"]
