@@ -372,7 +372,11 @@ def run_unit(unit: Unit, evaluation_set: EvaluationSet, terms: dict, policy) -> 
 
 def run_units_here(units: list[Unit], sets: list[EvaluationSet], terms: list[dict], policies: dict,
                    log) -> list[UnitResult]:
-    """Every unit, one after the other, in this process (no Ray)."""
+    """Every unit, one after the other, in this process (no Ray), on one thread as a Ray worker runs them
+    (``scale.cluster.ONE_THREAD``): a network's matrix products split over more threads round differently (seen
+    on an AMD EPYC: returns apart in the 10th digit), and a table must not depend on where its units ran."""
+    import torch
+    torch.set_num_threads(1)
     results = []
     for position, unit in enumerate(units):
         if position == 0 or units[position - 1].set_index != unit.set_index:
