@@ -294,3 +294,17 @@ def test_weather_layer_imports_no_ros_gym_or_torch():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                             cwd=Path(__file__).resolve().parents[1])
     assert result.stdout.strip() == "[]"
+
+
+
+def test_fit_weather_fits_only_the_named_files(tmp_path):
+    """Naming only --dssat fits only those files: Benton's AgWeatherNet default is not mixed in, nor its site."""
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    out = tmp_path / "gainesville.json"
+    gainesville = ["simple_r_inputs/Weather/UFGA7801.WTH", "simple_r_inputs/Weather/UFGA7901.WTH"]
+    assert run(parser.parse_args(["--data", str(DATA), "--name", "g", "--dssat", *gainesville, "--out", str(out),
+                                  "--check-seasons", "5"])) == 0
+    fitted = GeneratorParameters.from_json(out)
+    assert fitted.site.name == "UFGA"
+    assert [entry["source"] for entry in fitted.metadata["fitted_from"]] == gainesville

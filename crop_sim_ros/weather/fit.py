@@ -50,16 +50,26 @@ MONTH_NAMES = ("Jan", "Feb", "Mar", "Apr", "May", "Jun", "Jul", "Aug", "Sep", "O
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA_DIR,
                         help="reference data directory the file names are relative to (default: %(default)s)")
-    parser.add_argument("--agweathernet", nargs="*", default=list(DEFAULT_AGWEATHERNET), metavar="CSV",
-                        help="AgWeatherNet daily CSV files (default: the Benton E. 2000 season)")
-    parser.add_argument("--dssat", nargs="*", default=list(DEFAULT_DSSAT), metavar="WTH",
-                        help="DSSAT .WTH files (default: Paterson, WA, 1992-1995)")
+    parser.add_argument("--agweathernet", nargs="*", default=None, metavar="CSV",
+                        help="AgWeatherNet daily CSV files (with neither this nor --dssat: the Benton E. 2000 "
+                             "season; naming only --dssat fits only its files)")
+    parser.add_argument("--dssat", nargs="*", default=None, metavar="WTH",
+                        help="DSSAT .WTH files (with neither this nor --agweathernet: Paterson, WA, 1992-1995; "
+                             "naming only --agweathernet fits only its files)")
     parser.add_argument("--name", default="benton", help="label of the fitted parameters (default: %(default)s)")
     parser.add_argument("--out", type=Path, default=None,
                         help="JSON file to write (default: the packaged <name>_generator.json)")
     parser.add_argument("--check-seasons", type=int, default=500, metavar="N",
                         help="years generated to compare with the observations (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the comparison run (default: %(default)s)")
+
+
+def observed_files(agweathernet: list[str] | None, dssat: list[str] | None) -> tuple[list[str], list[str]]:
+    """The files the command fits: Benton's defaults when neither option is given, else only those named (a
+    fit of another site must not take in Benton's files unasked)."""
+    if agweathernet is None and dssat is None:
+        return list(DEFAULT_AGWEATHERNET), list(DEFAULT_DSSAT)
+    return list(agweathernet or []), list(dssat or [])
 
 
 def load_observed(data_dir: Path, agweathernet=DEFAULT_AGWEATHERNET, dssat=DEFAULT_DSSAT) -> list[WeatherSeries]:
@@ -315,7 +325,7 @@ def comparison_table(observed: dict[str, np.ndarray], generated: dict[str, np.nd
 
 def run(args: argparse.Namespace) -> int:
     try:
-        observed = load_observed(args.data, args.agweathernet, args.dssat)
+        observed = load_observed(args.data, *observed_files(args.agweathernet, args.dssat))
         params = fit_parameters(observed, args.name)
     except WeatherError as error:
         print(f"fit-weather: {error}")
