@@ -396,17 +396,16 @@ def run(args) -> int:
                               ("--history", getattr(args, "history", 1), 365)):
         if not 1 <= value <= high:
             raise UsageError(f"{name} {value}: must be in 1..{high:,}")
-    if args.task is None:
-        # the family agent's options: refused on the paper's task rather than ignored
-        family_only = [flag for flag, given in (
-            ("--imitate", getattr(args, "imitate", None)), ("--paw-filter", getattr(args, "paw_filter", False)),
-            ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
-            ("--algorithm recurrent-ppo", getattr(args, "algorithm", "ppo") != "ppo")) if given]
-        if family_only:
-            raise UsageError(f"{', '.join(family_only)}: with --task only (a family task's agent)")
     if args.task is not None:
         from .learning.train_task import train_task
         train_task(args)
-    else:
-        train(args)
+        return 0
+    # the family agent's options: refused on the paper's task rather than ignored
+    family_only = [flag for flag, given in (
+        ("--imitate", getattr(args, "imitate", None)), ("--paw-filter", getattr(args, "paw_filter", False)),
+        ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
+        ("--algorithm recurrent-ppo", getattr(args, "algorithm", "ppo") != "ppo")) if given]
+    if family_only:
+        raise UsageError(f"{', '.join(family_only)}: with --task only (a family task's agent)")
+    train(args)
     return 0

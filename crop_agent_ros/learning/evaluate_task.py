@@ -177,6 +177,20 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
     return sets
 
 
+def table_set(table: dict, set_name: str) -> tuple[dict, EvaluationSet]:
+    """Set ``set_name`` of an evaluation's ``table`` (its table.json, read): the table's entry for it and the
+    :class:`EvaluationSet` it was evaluated on, rebuilt from the table's task and arguments (ValueError naming
+    the table's sets if it has no such set)."""
+    from crop_sim_ros.task.scenario import get_scenario
+    entry = next((s for s in table["sets"] if s["name"] == set_name), None)
+    if entry is None:
+        raise ValueError(f"--set: {set_name!r} is not in the table (it has {', '.join(s['name'] for s in table['sets'])})")
+    arguments = table["arguments"]
+    evaluation_set = next(s for s in evaluation_sets(get_scenario(table["task"]), arguments["far_seasons"],
+                                                     arguments["far_seed"]) if s.name == set_name)
+    return entry, evaluation_set
+
+
 def set_terms(evaluation_set: EvaluationSet, seed: int) -> dict:
     """One draw of the task's episode terms per season of the set (name -> (M,) array)."""
     from ..policies.family_tuning import draw_terms

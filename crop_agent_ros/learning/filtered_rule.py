@@ -21,31 +21,26 @@ def rule_with_and_without_filter(table: dict, set_names=None) -> list[dict]:
     """Per set: the plain and the filtered rule's mean regret (USD/ha) against the table's oracle, and on what
     share of season x noise seed runs the filtered rule returns more."""
     from crop_sim_ros.task.scenario import get_scenario
-    from ..policies.family import FarmFacts, SoilWaterFilter
+    from ..policies.family import SoilWaterFilter
     from ..policies.family_tuning import tuned_rule
     from ..policies.rollout import run_episodes
-    from .evaluate_task import RULE, evaluation_sets
+    from .evaluate_task import RULE, table_set
     task = get_scenario(table["task"])
-    arguments = table["arguments"]
-    sets = {s.name: s for s in evaluation_sets(task, arguments["far_seasons"], arguments["far_seed"])}
     results = []
-    for entry in table["sets"]:
-        if set_names and entry["name"] not in set_names:
-            continue
-        evaluation_set = sets[entry["name"]]
+    for set_name in set_names or [s["name"] for s in table["sets"]]:
+        entry, evaluation_set = table_set(table, set_name)
         terms = {name: np.asarray(values, dtype=float) for name, values in entry["terms"].items()}
         oracle = np.asarray(entry["oracle_returns_usd_ha"], dtype=float)
         in_table = np.asarray(entry["returns_usd_ha"][RULE], dtype=float)[0]  # (seasons, noise seeds)
         returns = {}
-        for name, sensor_sd_mm in (("rule", 0.0), ("rule_with_filter", task.noise.paw_mm)):
+        for policy, sensor_sd_mm in (("rule", 0.0), ("rule_with_filter", task.noise.paw_mm)):
             runs = []
             for seed in range(in_table.shape[1]):
                 rule = tuned_rule(task.name)
-                rule.soil_water = SoilWaterFilter(FarmFacts.of_scenario(evaluation_set.scenario).capacity_mm,
-                                                  sensor_sd_mm)
+                rule.soil_water = SoilWaterFilter(rule.facts.capacity_mm, sensor_sd_mm)
                 runs.append(run_episodes(rule, evaluation_set.scenario, evaluation_set.seasons, seed=seed,
                                          terms=terms).episode_return)
-            returns[name] = np.stack(runs, axis=1)
+            returns[policy] = np.stack(runs, axis=1)
         if not np.allclose(returns["rule"], in_table, rtol=0.0, atol=1e-6):
             raise ValueError(f"{entry['name']}: the tuned rule does not reproduce the table's returns")
         results.append({"set": entry["name"], "sensor_sd_mm": task.noise.paw_mm,

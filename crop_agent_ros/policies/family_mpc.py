@@ -290,15 +290,10 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     The rule's return per season is its mean over the table's noise seeds (the planners read no noisy value:
     its return does not depend on the noise seed). Intervals: 95 % bootstrap over seasons, paired."""
     from crop_sim_ros.task.scenario import get_scenario
-    from crop_agent_ros.learning.evaluate_task import RULE, _ratio, evaluation_sets, interval
+    from crop_agent_ros.learning.evaluate_task import RULE, _ratio, interval, table_set
     from .rollout import run_episodes
-    arguments = table["arguments"]
     task = get_scenario(table["task"])
-    entry = next((s for s in table["sets"] if s["name"] == set_name), None)
-    if entry is None:
-        raise ValueError(f"--set: {set_name!r} is not in the table (it has {', '.join(s['name'] for s in table['sets'])})")
-    evaluation_set = next(s for s in evaluation_sets(task, arguments["far_seasons"], arguments["far_seed"])
-                          if s.name == set_name)
+    entry, evaluation_set = table_set(table, set_name)
     index = np.arange(len(entry["seasons"])) if seasons is None else np.asarray(seasons)
     if index.size == 0 or index.max() >= len(entry["seasons"]):
         raise ValueError(f"--seasons: {set_name} has seasons 0..{len(entry['seasons']) - 1}")
