@@ -320,6 +320,16 @@ def test_evaluation_sets_carry_the_task_terms_to_other_weather():
                                           "maricopa-real"]
     assert climates[2].scenario.weather.generator == "gainesville" and "held-out climate" in climates[3].role
     assert climates[2].scenario.sowing_date == get_scenario("gainesville-generated").sowing_date
+    # a third part on Benton's generator, sown March 1: its far set comes last, so the others keep climates-quota's
+    # positions (hence their drawn terms) and their weather
+    three = et.evaluation_sets(get_scenario("climates3-quota"), far_seasons=2)
+    assert [s.name for s in three] == [s.name for s in climates] + ["far-benton-early"]
+    for a, b in zip(climates, three):
+        assert (a.scenario.weather, a.scenario.sowing_date) == (b.scenario.weather, b.scenario.sowing_date)
+    early = three[-1]
+    assert (early.scenario.weather.generator, early.scenario.weather.seed, str(early.scenario.sowing_date)) == \
+        ("benton", 900_001, "2000-03-01")
+    assert "sown March 1" in early.role and early.scenario.name == "climates3-quota@benton-early-generated-seed900001"
 
 
 def test_resample_counts_draw_with_replacement():

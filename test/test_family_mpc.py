@@ -101,6 +101,12 @@ def test_a_mixture_has_a_pool_per_climate_and_each_field_draws_from_its_own():
         fm.climate_of(contexts[1500], {"benton": pools["benton"], "maricopa": pools["benton"]})
     with pytest.raises(ValueError, match="continuations need a weather generator"):
         fm.continuation_pool(get_scenario("benton-2000"), 2)
+    # two parts on one generator (Benton sown April 1 and March 1): a pool each, told apart by the sowing date
+    pools3 = fm.continuation_pool(get_scenario("climates3-quota"), 1)
+    assert list(pools3) == ["benton", "gainesville", "benton-early"]
+    assert pools3["benton-early"][0].extra["sowing_date"] == "2000-03-01"
+    contexts3 = season_contexts(get_scenario("climates3-quota"))
+    assert [fm.climate_of(contexts3[k], pools3) for k in (7, 1500, 2007)] == ["benton", "gainesville", "benton-early"]
 
 
 def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
@@ -114,10 +120,15 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
     assert err.count("\n") == 1 and "'far-nowhere' is not in the table" in err
     assert fm.main(["--table", str(table), "--set", "heldout-real", "--scenarios", "0"]) == 2
     assert "scenarios" in capsys.readouterr().err
-    assert fm.main(["--table", str(table), "--set", "maricopa-real", "--continuations", "atlantis"]) == 2
+    assert fm.main(["--table", str(table), "--set", "heldout-real", "--continuations", "atlantis"]) == 2
     assert "no weather generator 'atlantis' (fitted: benton, gainesville, maricopa)" in capsys.readouterr().err
-    assert fm.pool_generator_of("maricopa-generated") == "maricopa"
-    assert fm.pool_generator_of("maricopa-generated", "gainesville") == "gainesville"
+    task = get_scenario("climates3-quota")
+    assert fm.continuation_source(task, "maricopa-generated")[0] == "maricopa"
+    assert fm.continuation_source(task, "maricopa-generated", "gainesville")[0] == "gainesville"
+    name, early = fm.continuation_source(task, "far-benton-early")
+    assert (name, early.name, str(early.sowing_date)) == ("benton-early", "benton-early-generated", "2000-03-01")
+    with pytest.raises(ValueError, match="climates3-quota has no climate 'nowhere'"):
+        fm.continuation_source(task, "far-nowhere")
     (tmp_path / "list.json").write_text("[1, 2]")
     assert fm.main(["--table", str(tmp_path / "list.json"), "--set", "heldout-real"]) == 2
     assert "is not a table.json" in capsys.readouterr().err

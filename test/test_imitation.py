@@ -177,12 +177,25 @@ def test_with_the_soil_water_filter_the_inputs_are_what_the_agent_computes_day_b
         imitation.network_inputs(AgentInterface(scaler, 1, "mm", paw_filter=paw_filter), gap)
 
 
+def test_a_task_with_more_weather_parts_takes_the_demonstrations_of_one_with_fewer(tmp_path, demonstrations):
+    # climates3-quota = climates-quota's two parts + early-planted Benton (benton-early-quota's only part)
+    assert imitation.serves("climates-quota", "climates3-quota") and imitation.serves("benton-early-quota", "climates3-quota")
+    assert not imitation.serves("climates3-quota", "climates-quota")  # a part the smaller task does not hold
+    assert not imitation.serves("climates-quota", "benton-quota")
+    assert not imitation.serves("benton-early-quota", "benton-sensing")  # another sensor: other observations
+    early = tmp_path / "early.npz"
+    np.savez_compressed(early, **{**demonstrations, "task": "benton-early-quota"})
+    assert len(imitation.load_demonstrations([str(early)], "climates3-quota")["mm"]) == len(demonstrations["mm"])
+    with pytest.raises(UsageError, match="demonstrations of 'benton-early-quota'"):
+        imitation.load_demonstrations([str(early)], "climates-quota")
+
+
 def test_bad_demonstration_files_are_refused(tmp_path, demonstrations):
     good = tmp_path / "good.npz"
     np.savez_compressed(good, **demonstrations)
     loaded = imitation.load_demonstrations([str(tmp_path / "*.npz")], "benton-quota")
     assert len(loaded["mm"]) == len(demonstrations["mm"]) and loaded["files"] == [str(good)]
-    with pytest.raises(UsageError, match="demonstrations of 'benton-quota', not of 'benton-sensing'"):
+    with pytest.raises(UsageError, match="demonstrations of 'benton-quota', a task that differs from 'benton-sensing'"):
         imitation.load_demonstrations([str(good)], "benton-sensing")
     with pytest.raises(UsageError, match="no demonstration file matches"):
         imitation.load_demonstrations([str(tmp_path / "none-*.npz")], "benton-quota")

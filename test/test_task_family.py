@@ -203,9 +203,25 @@ def test_a_mixture_holds_the_seasons_of_its_parts():
     assert climates.n_seasons == 2000 and climates.is_family_task
 
 
+def test_climates3_holds_climates_quota_seasons_first_and_names_the_early_benton_part_apart():
+    from crop_sim_ros.task.scenario import climates
+    two, three = get_scenario("climates-quota"), get_scenario("climates3-quota")
+    assert three.n_seasons == 3000
+    assert list(climates(two)) == ["benton", "gainesville"]
+    parts = climates(three)
+    assert list(parts) == ["benton", "gainesville", "benton-early"]
+    assert str(parts["benton-early"].sowing_date) == "2000-03-01" and parts["benton-early"].weather.generator == "benton"
+    assert list(climates(get_scenario("benton-early-quota"))) == ["benton"]  # one part: its generator's name
+    # pool positions 0..1999 are climates-quota's seasons (its demonstrations' season numbers mean the same)
+    table2, table3 = core.scenario_table(two), core.scenario_table(three)
+    for k in (0, 999, 1000, 1999):
+        np.testing.assert_array_equal(table3.weather[k], table2.weather[k])
+    assert str(table3.sowing_dates[2000]) == "2000-03-01"
+
+
 def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
-                 "climates-quota"):
+                 "climates-quota", "climates3-quota", "benton-early-quota"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))

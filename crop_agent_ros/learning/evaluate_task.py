@@ -10,7 +10,9 @@ nothing here was seen in training or used to choose anything):
 - ``far-<generator>``: the task's own weather generator (each part's, for a mixture) with seed ``--far-seed``
   (900,001; training uses seed 0, validation 10,007 + the training seed), ``--far-seasons`` seasons;
 - ``maricopa-generated`` (re-seeded likewise) and ``maricopa-real`` (2007-2009): the held-out climate. For a
-  task trained on one climate (the Benton tasks) these are a transfer test, and the tables say so.
+  task trained on one climate (the Benton tasks) these are a transfer test, and the tables say so;
+- ``far-<part>`` (last): a mixture part on a generator another part also uses, i.e. the same site sown on another
+  date (``climates3-quota``'s ``far-benton-early``), named by its scenario (``benton-early-generated``).
 
 Terms: one draw of the task's episode terms (tuber price, water cost, quota) per season and set, from a
 fixed seed (``--terms-seed`` + the set's position), the same for every policy; each policy runs every season
@@ -153,20 +155,23 @@ class EvaluationSet:
 
 def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[EvaluationSet]:
     """The protocol's sets for ``task`` (see the module docstring), in table order."""
-    from crop_sim_ros.task.scenario import generated_parts, get_scenario, reseeded, with_weather_of
+    from crop_sim_ros.task.scenario import climates, get_scenario, reseeded, with_weather_of
     with user_input("--task (the protocol evaluates tasks trained on generated seasons)", (ValueError,)):
-        sources = generated_parts(task)
-    climates = sorted({s.weather.generator for s in sources})
-    held_out_climate = ("held-out climate" if len(climates) > 1
-                        else f"transfer test: trained on {climates[0]} weather only")
+        sources = climates(task)
+    generators = sorted({s.weather.generator for s in sources.values()})
+    held_out_climate = ("held-out climate" if len(generators) > 1
+                        else f"transfer test: trained on {generators[0]} weather only")
     heldout = get_scenario("heldout", task.data_dir)
     sets = [EvaluationSet(HELD_OUT_REAL, "held-out real seasons (Benton 2000, Paterson 1992-1995)",
                           with_weather_of(task, heldout), np.arange(heldout.n_seasons))]
-    for source in sources:
+    other_dates = []  # far sets of a site sown on another date (a part named apart from its generator)
+    for name, source in sources.items():
         generator = source.weather.generator
-        sets.append(EvaluationSet(f"far-{generator}", f"far generated seeds ({generator} generator, seed {far_seed})",
-                                  with_weather_of(task, reseeded(source, far_seed, far_seasons)),
-                                  np.arange(far_seasons)))
+        sown = "" if name == generator else f", sown {source.sowing_date:%B} {source.sowing_date.day}"
+        far = replace(reseeded(source, far_seed, far_seasons), name=f"{name}-generated-seed{far_seed}")
+        (sets if name == generator else other_dates).append(EvaluationSet(
+            f"far-{name}", f"far generated seeds ({generator} generator{sown}, seed {far_seed})",
+            with_weather_of(task, far), np.arange(far_seasons)))
     generated, real = (get_scenario(name, task.data_dir) for name in MARICOPA)
     sets.append(EvaluationSet("maricopa-generated",
                               f"{held_out_climate} (Maricopa AZ generator, seed {far_seed})",
@@ -174,7 +179,9 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
                               np.arange(far_seasons)))
     sets.append(EvaluationSet("maricopa-real", f"{held_out_climate} (Maricopa AZ, real seasons 2007-2009)",
                               with_weather_of(task, real), np.arange(real.n_seasons)))
-    return sets
+    # Those come last: each set's terms are drawn with a seed from its position, so climates3-quota's other
+    # sets keep climates-quota's positions, seasons and terms (their oracle returns are the same).
+    return sets + other_dates
 
 
 def table_set(table: dict, set_name: str) -> tuple[dict, EvaluationSet]:

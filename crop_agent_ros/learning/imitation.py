@@ -40,6 +40,7 @@ import copy
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -215,8 +216,27 @@ def _read(path: str, keys: tuple[str, ...]) -> dict:
         return {k: data[k] for k in keys}
 
 
+def serves(file_task: str, task_name: str) -> bool:
+    """Whether demonstrations recorded on task ``file_task`` train task ``task_name``: the same task, or one that
+    differs from it only in holding more weather parts (same crop, soil, terms, limits, noise; each generated
+    part of ``file_task`` one of ``task_name``'s): its field-days are then states of ``task_name`` too, with the
+    teacher's labels (``climates-quota``'s and ``benton-early-quota``'s files train ``climates3-quota``)."""
+    if file_task == task_name:
+        return True
+    from crop_sim_ros.task.scenario import generated_parts, get_scenario
+    try:
+        recorded, task = get_scenario(file_task), get_scenario(task_name)
+        recorded_parts, task_parts = generated_parts(recorded), generated_parts(task)
+    except (KeyError, ValueError):
+        return False
+    neutral = {"name": task.name, "description": task.description, "weather": task.weather,
+               "sowing_date": task.sowing_date}
+    return replace(recorded, **neutral) == task and all(part in task_parts for part in recorded_parts)
+
+
 def load_demonstrations(patterns: list[str], task_name: str) -> dict:
-    """The demonstration files matching ``patterns`` (globs), concatenated; each must be of ``task_name``."""
+    """The demonstration files matching ``patterns`` (globs), concatenated; each must be of ``task_name`` or of a
+    task whose demonstrations serve it (:func:`serves`)."""
     import glob
     paths = sorted({p for pattern in patterns for p in glob.glob(pattern)})
     if not paths:
@@ -225,8 +245,9 @@ def load_demonstrations(patterns: list[str], task_name: str) -> dict:
     for number, path in enumerate(paths):
         with user_input(f"--imitate {path}", (OSError, ValueError, KeyError)):
             data = _read(path, ("task", "observations", "mm", "season", "day"))
-            if str(data["task"]) != task_name:
-                raise ValueError(f"demonstrations of {str(data['task'])!r}, not of {task_name!r}")
+            if not serves(str(data["task"]), task_name):
+                raise ValueError(f"demonstrations of {str(data['task'])!r}, a task that differs from {task_name!r} "
+                                 "in more than holding fewer of its weather parts")
             part = {k: data[k] for k in ("observations", "mm", "season", "day")}
             part["file"] = np.full(len(part["mm"]), number)
         if not (np.all(np.isfinite(part["observations"])) and np.all(np.isfinite(part["mm"]))

@@ -83,27 +83,35 @@ class MpcSettings:
 
 
 def continuation_pool(generator_scenario, scenarios: int, seed: int = POOL_SEED) -> dict[str, list[SeasonContext]]:
-    """Generator name -> ``scenarios`` generated seasons of that generator with ``seed``: one entry for a
-    scenario on one weather generator, one per part for a mixture (each part with its own sowing date)."""
-    from crop_sim_ros.task.scenario import generated_parts, reseeded
+    """Climate name (:func:`crop_sim_ros.task.scenario.climates`: the generator's, or the part's where two parts
+    share one) -> ``scenarios`` generated seasons of that climate with ``seed``: one entry for a scenario on one
+    weather generator, one per part for a mixture (each part with its own sowing date)."""
+    from crop_sim_ros.task.scenario import climates, reseeded
     from .rollout import season_contexts
     try:
-        parts = generated_parts(generator_scenario)
+        parts = climates(generator_scenario)
     except ValueError as error:
         raise ValueError(f"family MPC: continuations need a weather generator; {error}") from None
-    return {part.weather.generator: season_contexts(reseeded(part, seed, scenarios)) for part in parts}
+    return {name: season_contexts(reseeded(part, seed, scenarios)) for name, part in parts.items()}
+
+
+def _climate_key(context: SeasonContext) -> tuple:
+    """(weather generator, sowing month and day) of a season: what tells the climates of a mixture apart."""
+    from crop_sim_ros.weather.generator import generator_of_source
+    return generator_of_source(str(context.extra.get("source", ""))), str(context.extra.get("sowing_date", ""))[5:]
 
 
 def climate_of(context: SeasonContext, pools: dict) -> str:
-    """The pool a field draws its continuations from: the only one, or its weather generator's."""
-    from crop_sim_ros.weather.generator import generator_of_source
+    """The pool a field draws its continuations from: the only one, or the one of its weather generator and
+    sowing date."""
     if len(pools) == 1:
         return next(iter(pools))
-    name = generator_of_source(str(context.extra.get("source", "")))
-    if name not in pools:
-        raise ValueError(f"family MPC: season {context.name} ({context.extra.get('source')}) has no continuation "
-                         f"pool (pools: {', '.join(pools)})")
-    return name
+    key = _climate_key(context)
+    found = [name for name, pool in pools.items() if _climate_key(pool[0]) == key]
+    if len(found) != 1:
+        raise ValueError(f"family MPC: season {context.name} ({context.extra.get('source')}, sown "
+                         f"{context.extra.get('sowing_date')}) has no continuation pool (pools: {', '.join(pools)})")
+    return found[0]
 
 
 def _day_of_year(context: SeasonContext) -> int:
@@ -256,22 +264,33 @@ def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], set
 
 # --- command line: a planner on an evaluated set, beside the oracle and the rule of that evaluation ----------
 
-def pool_generator_of(set_name: str, asked: str | None = None) -> str:
-    """The weather generator whose climatology the MPC draws continuations from on an evaluation set:
-    ``asked`` (one of the fitted generators), else the site's own (the held-out real seasons are Benton
+def fitted_generator(name: str) -> str:
+    """``name`` if a weather generator of that name is fitted (ValueError naming those that are)."""
+    from crop_sim_ros.weather.generator import GENERATOR_NAMES
+    if name not in GENERATOR_NAMES:
+        raise ValueError(f"--continuations: no weather generator {name!r} (fitted: {', '.join(GENERATOR_NAMES)})")
+    return name
+
+
+def continuation_source(task, set_name: str, asked: str | None = None):
+    """(name, generated-weather scenario) whose climatology the MPC draws continuations from on evaluation set
+    ``set_name`` of ``task``: ``asked`` (one of the fitted generators, its ``<name>-generated`` scenario), else
+    the set's own site and sowing date (a far set's part of the task; the held-out real seasons are Benton
     County's). Asking for another site's shows what a planner that knows only that climate does here (e.g. a
     training climate's on the held-out one)."""
+    from crop_sim_ros.task.scenario import climates, get_scenario
     if asked is not None:
-        from crop_sim_ros.weather.generator import GENERATOR_NAMES
-        if asked not in GENERATOR_NAMES:
-            raise ValueError(f"--continuations: no weather generator {asked!r} (fitted: {', '.join(GENERATOR_NAMES)})")
-        return asked
+        return fitted_generator(asked), get_scenario(f"{asked}-generated", task.data_dir)
     if set_name.startswith("far-"):
-        return set_name[len("far-"):]
+        parts = climates(task)
+        name = set_name[len("far-"):]
+        if name not in parts:
+            raise ValueError(f"family MPC: {task.name} has no climate {name!r} (climates: {', '.join(parts)})")
+        return name, parts[name]
     if set_name.startswith("maricopa-"):
-        return "maricopa"
+        return "maricopa", get_scenario("maricopa-generated", task.data_dir)
     if set_name == "heldout-real":
-        return "benton"
+        return "benton", get_scenario("benton-generated", task.data_dir)
     raise ValueError(f"family MPC: no weather generator known for set {set_name!r}")
 
 
@@ -286,7 +305,7 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     """Run a planner (``settings``: :class:`MpcSettings` or ``HindsightSettings``; the summary's keys say
     ``mpc`` for either) on ``set_name`` of an evaluation ``table`` (``crop-sim evaluate --task``'s table.json) with
     that evaluation's terms, and compare it with the table's oracle and rule on the same seasons (USD/ha);
-    its continuations are drawn from ``continuations``' generator (:func:`pool_generator_of`).
+    its continuations are drawn from ``continuations``' generator or the set's own climate (:func:`continuation_source`).
     The rule's return per season is its mean over the table's noise seeds (the planners read no noisy value:
     its return does not depend on the noise seed). Intervals: 95 % bootstrap over seasons, paired."""
     from crop_sim_ros.task.scenario import get_scenario
@@ -298,8 +317,8 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     if index.size == 0 or index.max() >= len(entry["seasons"]):
         raise ValueError(f"--seasons: {set_name} has seasons 0..{len(entry['seasons']) - 1}")
     terms = {name: np.asarray(values, dtype=float)[index] for name, values in entry["terms"].items()}
-    generator = pool_generator_of(set_name, continuations)
-    pools = continuation_pool(get_scenario(f"{generator}-generated", task.data_dir), settings.scenarios)
+    generator, source = continuation_source(task, set_name, continuations)
+    pools = continuation_pool(source, settings.scenarios)
     mpc = planner(TaskConstants.of_scenario(evaluation_set.scenario), pools, settings)
     began = time.perf_counter()
     mpc_returns = run_episodes(mpc, evaluation_set.scenario, np.asarray(entry["seasons"])[index], seed=0,
@@ -396,7 +415,8 @@ def main(argv=None) -> int:
                 raise ValueError(f"--table: {args.table} is not a table.json of `crop-sim evaluate --task`")
             settings = planner_settings(args.method, args.scenarios, args.decision_every_days)
             seasons = None if args.seasons is None else season_range(args.seasons)
-            pool_generator_of(args.set, args.continuations)  # a bad name is refused before any planning
+            if args.continuations is not None:
+                fitted_generator(args.continuations)  # refused before any planning
             summary = compare_with_table(table, args.set, seasons, settings, continuations=args.continuations)
     except (OSError, ValueError, KeyError) as error:
         print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)

@@ -17,6 +17,7 @@ SimpleIrrigation-Capacity-v0            benton-capacity       family: irrigation
 SimpleIrrigation-Sensing-v0             benton-sensing        family: quota + noisy PAW with dropouts
 SimpleIrrigation-Blind-v0               benton-blind          family: quota + no PAW sensor
 SimpleIrrigation-Climates-v0            climates-quota        family: quota, Benton + Gainesville weather
+SimpleIrrigation-Climates3-v0           climates3-quota       family: climates-quota + Benton sown March 1
 ======================================= ===================== ===========================================
 
 The family tasks (money, quota, capacity, sensing, climates) are documented in :mod:`crop_sim_ros.task.layout`
@@ -45,6 +46,7 @@ ENV_IDS = {
     "SimpleIrrigation-Sensing-v0": "benton-sensing",
     "SimpleIrrigation-Blind-v0": "benton-blind",
     "SimpleIrrigation-Climates-v0": "climates-quota",
+    "SimpleIrrigation-Climates3-v0": "climates3-quota",
 }
 
 for _env_id, _scenario in ENV_IDS.items():

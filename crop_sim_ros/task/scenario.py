@@ -39,7 +39,7 @@ real seasons of the SIMPLE input set, DSSAT WAPA9201..9501.WTH, sowing dates of 
 ``heldout`` (the five real seasons together, for evaluation). Other climates: ``gainesville-generated`` and
 ``maricopa-generated`` (generated weather of Gainesville, FL and Maricopa, AZ, sown in their winter
 planting seasons), ``gainesville-real`` and ``maricopa-real`` (their distinct real years, sown on the same
-dates). Every built-in scenario grows Russet Burbank
+dates); ``benton-early-generated`` (Benton County sown March 1, the early end of its planting window). Every built-in scenario grows Russet Burbank
 potato on the Benton County soil at 369 ppm CO2 (the 2000 global mean; the held-out seasons keep it so
 that only the weather differs from training).
 """
@@ -473,6 +473,17 @@ def generated_parts(task: Scenario) -> list[Scenario]:
     if task.weather.kind == "mixture":
         return [get_scenario(name, task.data_dir) for name in task.weather.mixture]
     raise ValueError(f"{task.name!r} does not train on generated weather (its weather is {task.weather.kind!r})")
+
+
+def climates(task: Scenario) -> dict[str, Scenario]:
+    """Name -> part of each generated part of ``task`` (:func:`generated_parts`, in pool order): the part's weather
+    generator, or, where two parts share a generator (the same site sown on other dates), the part's scenario
+    name without ``-generated`` (``benton-early``). The names of the MPC's continuation pools and of the
+    evaluation's far sets."""
+    parts = generated_parts(task)
+    generators = [part.weather.generator for part in parts]
+    return {(generator if generators.count(generator) == 1 else part.name.removesuffix("-generated")): part
+            for generator, part in zip(generators, parts)}
 
 
 def reseeded(source: Scenario, seed: int, n_seasons: int) -> Scenario:
