@@ -305,7 +305,8 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     """Run a planner (``settings``: :class:`MpcSettings` or ``HindsightSettings``; the summary's keys say
     ``mpc`` for either) on ``set_name`` of an evaluation ``table`` (``crop-sim evaluate --task``'s table.json) with
     that evaluation's terms, and compare it with the table's oracle and rule on the same seasons (USD/ha);
-    its continuations are drawn from ``continuations``' generator or the set's own climate (:func:`continuation_source`).
+    its continuations are drawn from ``continuations``' generator or the set's own climate
+    (:func:`continuation_source`).
     The rule's return per season is its mean over the table's noise seeds (the planners read no noisy value:
     its return does not depend on the noise seed). Intervals: 95 % bootstrap over seasons, paired."""
     from crop_sim_ros.task.scenario import get_scenario
