@@ -296,7 +296,6 @@ def test_weather_layer_imports_no_ros_gym_or_torch():
     assert result.stdout.strip() == "[]"
 
 
-
 def test_fit_weather_fits_only_the_named_files(tmp_path):
     """Naming only --dssat fits only those files: Benton's AgWeatherNet default is not mixed in, nor its site."""
     parser = argparse.ArgumentParser()

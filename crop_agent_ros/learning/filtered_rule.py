@@ -34,13 +34,11 @@ def rule_with_and_without_filter(table: dict, set_names=None) -> list[dict]:
         in_table = np.asarray(entry["returns_usd_ha"][RULE], dtype=float)[0]  # (seasons, noise seeds)
         returns = {}
         for policy, sensor_sd_mm in (("rule", 0.0), ("rule_with_filter", task.noise.paw_mm)):
-            runs = []
-            for seed in range(in_table.shape[1]):
-                rule = tuned_rule(task.name)
-                rule.soil_water = SoilWaterFilter(rule.facts.capacity_mm, sensor_sd_mm)
-                runs.append(run_episodes(rule, evaluation_set.scenario, evaluation_set.seasons, seed=seed,
-                                         terms=terms).episode_return)
-            returns[policy] = np.stack(runs, axis=1)
+            rule = tuned_rule(task.name)  # run_episodes resets it (and its filter) before each noise seed
+            rule.soil_water = SoilWaterFilter(rule.facts.capacity_mm, sensor_sd_mm)
+            returns[policy] = np.stack([run_episodes(rule, evaluation_set.scenario, evaluation_set.seasons, seed=seed,
+                                                     terms=terms).episode_return
+                                        for seed in range(in_table.shape[1])], axis=1)
         if not np.allclose(returns["rule"], in_table, rtol=0.0, atol=1e-6):
             raise ValueError(f"{entry['name']}: the tuned rule does not reproduce the table's returns")
         results.append({"set": entry["name"], "sensor_sd_mm": task.noise.paw_mm,
