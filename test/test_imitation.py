@@ -184,11 +184,36 @@ def test_a_task_with_more_weather_parts_takes_the_demonstrations_of_one_with_few
     assert not imitation.serves("climates3-quota", "climates-quota")  # a part the smaller task does not hold
     assert not imitation.serves("climates-quota", "benton-quota")
     assert not imitation.serves("benton-early-quota", "benton-sensing")  # another sensor: other observations
+    # another pivot (5.5 mm/d, the observation's capacity column says so) on a part the task holds: served
+    assert imitation.serves("benton-early-pivot", "climates3-quota")
+    assert imitation.serves("benton-early-pivot", "benton-early-quota")
+    assert not imitation.serves("benton-early-pivot", "climates-quota")  # its part is not climates-quota's
+    assert not imitation.serves("benton-money", "benton-quota")  # no quota: not only the capacity differs
     early = tmp_path / "early.npz"
     np.savez_compressed(early, **{**demonstrations, "task": "benton-early-quota"})
     assert len(imitation.load_demonstrations([str(early)], "climates3-quota")["mm"]) == len(demonstrations["mm"])
     with pytest.raises(UsageError, match="demonstrations of 'benton-early-quota'"):
         imitation.load_demonstrations([str(early)], "climates-quota")
+
+
+def test_a_column_the_training_task_holds_constant_is_scaled_over_the_demonstrations_too():
+    capacity, quota = EXTENDED.index("capacity_mm_per_day"), EXTENDED.index("quota_remaining_mm")
+    rng = np.random.default_rng(3)
+    task_obs = rng.uniform(1.0, 2.0, (200, EXTENDED.size))
+    task_obs[:, capacity], task_obs[:, 22] = 8.0, 0.0  # one pivot; no event cost
+    demos = rng.uniform(1.0, 2.0, (300, EXTENDED.size))
+    demos[:, capacity], demos[:, 22] = 5.5, 0.0  # another pivot
+    own, widened = ObservationScaler.fit(task_obs), ObservationScaler.fit(task_obs, demos)
+    both = np.concatenate([task_obs, demos])
+    assert widened.mean[capacity] == pytest.approx(both[:, capacity].mean())  # 6.5
+    assert widened.std[capacity] == pytest.approx(both[:, capacity].std())
+    # the demonstrations' pivot was at the -10 clip under the task's own scaling, and is not now
+    assert own(demos[:1])[0, capacity] == -10.0
+    assert -3.0 < widened(demos[:1])[0, capacity] < 0.0 < widened(task_obs[:1])[0, capacity] < 3.0
+    # columns the task varies keep its scaling; a column constant in both stays at the floor
+    assert widened.mean[quota] == own.mean[quota] and widened.std[quota] == own.std[quota]
+    assert widened.std[22] == own.std[22] == 1e-3
+    assert ObservationScaler.fit(task_obs, task_obs[:50]) == own
 
 
 def test_bad_demonstration_files_are_refused(tmp_path, demonstrations):
@@ -225,6 +250,24 @@ def test_train_imitate_writes_a_policy_that_acts_like_its_demonstrations(tmp_pat
     assert early_config["timesteps_at_save"] == 0 and "after 2 of 200" in early_config["imitation"]["early_model"]
     early_error = np.abs(early.act(demonstrations["observations"].astype(float)) - demonstrations["mm"])
     assert early_error.mean() > 2.0 * error.mean()
+
+
+def test_a_smaller_pivots_demonstrations_train_the_task_and_set_the_capacity_columns_scaling(tmp_path):
+    # the planner on a 5.5 mm/d pivot plans within it; its file trains the 8 mm/d task, whose own seasons
+    # hold the capacity column constant: the run's scaler takes that column from the demonstrations
+    small = imitation.demonstrate("benton-early-pivot", np.array([5]), CHEAP, action_noise_mm=0.0, seed=2)
+    capacity = EXTENDED.index("capacity_mm_per_day")
+    assert np.all(small["observations"][:, capacity] == 5.5) and small["mm"].max() <= 5.5
+    assert small["mm"].sum() > 50.0
+    np.savez_compressed(tmp_path / "small.npz", **small)
+    out = tmp_path / "run"
+    tiny_task_training(out, "benton-early-quota", 1, "--imitate", str(tmp_path / "small.npz"),
+                       "--imitation-epochs", "2", timesteps=256)
+    config = json.loads((out / "model.json").read_text())
+    mean, std = config["scaler"]["mean"][capacity], config["scaler"]["std"][capacity]
+    assert 5.5 < mean < 8.0 and std > 0.1  # the task's 8 mm/d days and the file's 5.5 together
+    policy = LearnedPolicy(out / "model.zip")
+    assert np.all(np.abs(policy.interface.scaler(small["observations"])[:, capacity]) < 10.0)
 
 
 @pytest.mark.parametrize("arguments, message", [

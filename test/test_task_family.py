@@ -219,9 +219,25 @@ def test_climates3_holds_climates_quota_seasons_first_and_names_the_early_benton
     assert str(table3.sowing_dates[2000]) == "2000-03-01"
 
 
+def test_the_smaller_pivot_task_grows_benton_early_quotas_seasons_within_5_5_mm_a_day():
+    pivot, early = get_scenario("benton-early-pivot"), get_scenario("benton-early-quota")
+    assert pivot.limits.capacity_mm_per_day == 5.5 and early.limits.capacity_mm_per_day == 8.0
+    assert pivot.limits.quota_mm == early.limits.quota_mm and pivot.weather == early.weather
+    small, large = IrrigationVectorEnv(3, pivot), IrrigationVectorEnv(3, early)
+    obs_small, _ = small.reset(seed=4)
+    obs_large, _ = large.reset(seed=4)
+    capacity = EXTENDED.index("capacity_mm_per_day")
+    assert np.all(obs_small[:, capacity] == 5.5) and np.all(obs_large[:, capacity] == 8.0)
+    np.testing.assert_array_equal(np.delete(obs_small, capacity, axis=1), np.delete(obs_large, capacity, axis=1))
+    obs_small, *_ = small.step(np.full(3, 20.0))
+    obs_large, *_ = large.step(np.full(3, 20.0))
+    yesterday = EXTENDED.index("irrigation_yesterday_mm")
+    assert np.all(obs_small[:, yesterday] == 5.5) and np.all(obs_large[:, yesterday] == 8.0)
+
+
 def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
-                 "climates-quota", "climates3-quota", "benton-early-quota"):
+                 "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))

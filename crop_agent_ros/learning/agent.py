@@ -64,6 +64,10 @@ def residual_to_mm(action: np.ndarray, rule_mm: np.ndarray) -> np.ndarray:
     return np.clip(np.asarray(rule_mm, dtype=float).reshape(-1) + correction, 0.0, ACTION_SCALE_MM)
 
 
+# Least std of a scaled column (in the column's unit): a constant column scales to 0.
+FLOOR_STD = 1e-3
+
+
 @dataclass(frozen=True)
 class ObservationScaler:
     """Fixed affine scaling of the observation: (obs - mean) / std, clipped to [-10, 10] (std floored at
@@ -73,9 +77,20 @@ class ObservationScaler:
     std: tuple[float, ...]
 
     @classmethod
-    def fit(cls, observations: np.ndarray) -> "ObservationScaler":
+    def fit(cls, observations: np.ndarray, demonstrations: np.ndarray | None = None) -> "ObservationScaler":
+        """Mean and std of each column of ``observations`` (the training task's). With ``demonstrations``, each
+        column those observations hold constant (std at the floor) is scaled over both sets together:
+        demonstrations of a task that differs from the training task in a constant the observation carries
+        (another pivot's capacity, :func:`crop_agent_ros.learning.imitation.serves`) would otherwise scale to
+        the +-10 clip in that column. Every other column keeps the training task's scaling."""
         obs = np.asarray(observations, dtype=float).reshape(-1, EXTENDED.size)
-        return cls(tuple(obs.mean(axis=0).tolist()), tuple(np.maximum(obs.std(axis=0), 1e-3).tolist()))
+        mean, std = obs.mean(axis=0), np.maximum(obs.std(axis=0), FLOOR_STD)
+        if demonstrations is not None:
+            both = np.concatenate([obs, np.asarray(demonstrations, dtype=float).reshape(-1, EXTENDED.size)])
+            constant = std <= FLOOR_STD
+            mean = np.where(constant, both.mean(axis=0), mean)
+            std = np.where(constant, np.maximum(both.std(axis=0), FLOOR_STD), std)
+        return cls(tuple(mean.tolist()), tuple(std.tolist()))
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         scaled = (np.atleast_2d(np.asarray(obs, dtype=float)) - np.asarray(self.mean)) / np.asarray(self.std)

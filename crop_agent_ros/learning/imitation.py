@@ -218,9 +218,13 @@ def _read(path: str, keys: tuple[str, ...]) -> dict:
 
 def serves(file_task: str, task_name: str) -> bool:
     """Whether demonstrations recorded on task ``file_task`` train task ``task_name``: the same task, or one that
-    differs from it only in holding more weather parts (same crop, soil, terms, limits, noise; each generated
-    part of ``file_task`` one of ``task_name``'s): its field-days are then states of ``task_name`` too, with the
-    teacher's labels (``climates-quota``'s and ``benton-early-quota``'s files train ``climates3-quota``)."""
+    differs from it only in holding more weather parts (same crop, soil, terms, quota, noise; each generated
+    part of ``file_task`` one of ``task_name``'s) and, possibly, in the irrigation system's capacity. Its
+    field-days are then states of ``task_name`` too, with the teacher's labels (``climates-quota``'s and
+    ``benton-early-quota``'s files train ``climates3-quota``); a file on another pivot size holds states of the
+    same decision with another value in the observation's ``capacity_mm_per_day`` column, the teacher planning
+    within that capacity (``benton-early-pivot``'s 5.5 mm/d files train ``climates3-quota``, 8 mm/d: a regime,
+    demand above what the system applies, that its own training climates never reach)."""
     if file_task == task_name:
         return True
     from crop_sim_ros.task.scenario import generated_parts, get_scenario
@@ -230,7 +234,8 @@ def serves(file_task: str, task_name: str) -> bool:
     except (KeyError, ValueError):
         return False
     neutral = {"name": task.name, "description": task.description, "weather": task.weather,
-               "sowing_date": task.sowing_date}
+               "sowing_date": task.sowing_date,
+               "limits": replace(recorded.limits, capacity_mm_per_day=task.limits.capacity_mm_per_day)}
     return replace(recorded, **neutral) == task and all(part in task_parts for part in recorded_parts)
 
 
@@ -247,7 +252,7 @@ def load_demonstrations(patterns: list[str], task_name: str) -> dict:
             data = _read(path, ("task", "observations", "mm", "season", "day"))
             if not serves(str(data["task"]), task_name):
                 raise ValueError(f"demonstrations of {str(data['task'])!r}, a task that differs from {task_name!r} "
-                                 "in more than holding fewer of its weather parts")
+                                 "in more than holding fewer of its weather parts (and its pivot's capacity)")
             part = {k: data[k] for k in ("observations", "mm", "season", "day")}
             part["file"] = np.full(len(part["mm"]), number)
         if not (np.all(np.isfinite(part["observations"])) and np.all(np.isfinite(part["mm"]))

@@ -53,8 +53,9 @@ def add_task_arguments(parser) -> None:
                         help="end the cloning with the epoch of least held-out error, not the last (early stopping)")
 
 
-def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
-    """Observation statistics over ``seasons`` training seasons under the default water-budget rule."""
+def fit_scaler(scenario, seed: int, seasons: int = 64, demonstrations: np.ndarray | None = None) -> ObservationScaler:
+    """Observation statistics over ``seasons`` training seasons under the default water-budget rule (a column
+    they hold constant, over them and the ``demonstrations``' observations: :meth:`ObservationScaler.fit`)."""
     from crop_sim_ros.task import IrrigationVectorEnv
     from ..policies.family import FarmFacts, WaterBudgetRule
 
@@ -66,7 +67,7 @@ def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
     for _ in range(160):
         obs, *_ = env.step(rule.act(obs))
         seen.append(obs)
-    return ObservationScaler.fit(np.concatenate(seen))
+    return ObservationScaler.fit(np.concatenate(seen), demonstrations)
 
 
 def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, harvest_index: float,
@@ -155,7 +156,15 @@ def train_task(args) -> dict:
     out = Path(args.out) if args.out else Path("runs") / f"{args.task}-{args.algorithm}-s{args.seed}"
     out.mkdir(parents=True, exist_ok=True)
     params = core.task_params(scenario)
-    scaler = fit_scaler(scenario, args.seed)
+    demonstrations = None
+    if getattr(args, "imitate", None):
+        from .imitation import load_demonstrations
+        if not 1 <= args.imitation_epochs <= 100_000:
+            from crop_sim_ros.usage import UsageError
+            raise UsageError(f"--imitation-epochs {args.imitation_epochs}: must be in 1..100,000")
+        demonstrations = load_demonstrations(args.imitate, scenario.name)
+    scaler = fit_scaler(scenario, args.seed,
+                        demonstrations=None if demonstrations is None else demonstrations["observations"])
     net_arch = [int(x) for x in str(args.net_arch).split(",") if x.strip()]
     action_kind = getattr(args, "action", "mm")
     rule = None
@@ -193,11 +202,8 @@ def train_task(args) -> dict:
             model.policy.action_net.weight.zero_()
             model.policy.action_net.bias.zero_()
     imitation = None
-    if getattr(args, "imitate", None):
-        from .imitation import clone, load_demonstrations
-        if not 1 <= args.imitation_epochs <= 100_000:
-            from crop_sim_ros.usage import UsageError
-            raise UsageError(f"--imitation-epochs {args.imitation_epochs}: must be in 1..100,000")
+    if demonstrations is not None:
+        from .imitation import clone
         # the run's "1 %" policy is the network after 1 % of its behaviour-cloning epochs (what "learning is
         # real" compares the final policy with): kept in memory until the policy files can be written
         early_epoch = max(1, args.imitation_epochs // 100)
@@ -207,7 +213,7 @@ def train_task(args) -> dict:
             if epoch == early_epoch:
                 early_weights.update({k: v.clone() for k, v in model.policy.state_dict().items()})
 
-        imitation = clone(model, interface, load_demonstrations(args.imitate, scenario.name), args.imitation_epochs,
+        imitation = clone(model, interface, demonstrations, args.imitation_epochs,
                           args.seed, after_epoch=keep_early, keep_best=args.imitation_keep_best)
         imitation["early_model"] = f"after {early_epoch} of {args.imitation_epochs} behaviour-cloning epochs"
     validation = validation_scenario(scenario, args.validation_seasons, args.seed)
