@@ -125,6 +125,13 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
     task = get_scenario("climates3-quota")
     assert fm.continuation_source(task, "maricopa-generated")[0] == "maricopa"
     assert fm.continuation_source(task, "maricopa-generated", "gainesville")[0] == "gainesville"
+    # a part named apart from its generator: Benton sown March 1, not benton-generated's April
+    name, early = fm.continuation_source(task, "maricopa-generated", "benton-early")
+    assert (name, early.name, str(early.sowing_date)) == ("benton-early", "benton-early-generated", "2000-03-01")
+    assert str(fm.continuation_source(task, "maricopa-generated", "benton")[1].sowing_date) == "2000-04-01"
+    with pytest.raises(ValueError, match="no weather generator 'atlantis' .* no climate of the task so named "
+                                         r"\(benton-early\)"):
+        fm.continuation_source(task, "maricopa-generated", "atlantis")
     name, early = fm.continuation_source(task, "far-benton-early")
     assert (name, early.name, str(early.sowing_date)) == ("benton-early", "benton-early-generated", "2000-03-01")
     with pytest.raises(ValueError, match="climates3-quota has no climate 'nowhere'"):

@@ -53,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from crop_sim_ros.task.layout import EXTENDED
+from crop_sim_ros.weather.generator import GENERATOR_NAMES
 
 from .base import DAYS_SINCE_SOWING, BasePolicy, SeasonContext
 from .family_oracle import TaskConstants, field_problems, plan_fields, season_range, within_quota
@@ -264,23 +265,29 @@ def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], set
 
 # --- command line: a planner on an evaluated set, beside the oracle and the rule of that evaluation ----------
 
-def fitted_generator(name: str) -> str:
-    """``name`` if a weather generator of that name is fitted (ValueError naming those that are)."""
-    from crop_sim_ros.weather.generator import GENERATOR_NAMES
+def fitted_generator(name: str, parts=()) -> str:
+    """``name`` if a weather generator of that name is fitted (ValueError naming those that are, and the task's
+    climates ``parts`` that ``--continuations`` also takes)."""
     if name not in GENERATOR_NAMES:
-        raise ValueError(f"--continuations: no weather generator {name!r} (fitted: {', '.join(GENERATOR_NAMES)})")
+        also = [part for part in parts if part not in GENERATOR_NAMES]
+        raise ValueError(f"--continuations: no weather generator {name!r} (fitted: {', '.join(GENERATOR_NAMES)})"
+                         + (f" and no climate of the task so named ({', '.join(also)})" if also else ""))
     return name
 
 
 def continuation_source(task, set_name: str, asked: str | None = None):
     """(name, generated-weather scenario) whose climatology the MPC draws continuations from on evaluation set
-    ``set_name`` of ``task``: ``asked`` (one of the fitted generators, its ``<name>-generated`` scenario), else
+    ``set_name`` of ``task``: ``asked`` (one of the fitted generators, its ``<name>-generated`` scenario, or a
+    climate of the task named apart from its generator, e.g. ``benton-early``: Benton sown March 1), else
     the set's own site and sowing date (a far set's part of the task; the held-out real seasons are Benton
     County's). Asking for another site's shows what a planner that knows only that climate does here (e.g. a
     training climate's on the held-out one)."""
     from crop_sim_ros.task.scenario import climates, get_scenario
     if asked is not None:
-        return fitted_generator(asked), get_scenario(f"{asked}-generated", task.data_dir)
+        parts = climates(task)
+        if asked not in GENERATOR_NAMES and asked in parts:
+            return asked, parts[asked]  # a part named apart from its generator (benton-early: sown March 1)
+        return fitted_generator(asked, parts), get_scenario(f"{asked}-generated", task.data_dir)
     if set_name.startswith("far-"):
         parts = climates(task)
         name = set_name[len("far-"):]
@@ -394,9 +401,10 @@ def main(argv=None) -> int:
                              "continuation's best plan")
     parser.add_argument("--scenarios", type=int, help="continuations per decision (default: the planner's, 4 or 8)")
     parser.add_argument("--decision-every-days", type=int, help="days between decisions (default: 7)")
-    parser.add_argument("--continuations", metavar="GENERATOR",
-                        help="draw the continuations from this site's weather generator (default: the set's own "
-                             "site, e.g. maricopa on maricopa-generated)")
+    parser.add_argument("--continuations", metavar="CLIMATE",
+                        help="draw the continuations from this site's weather generator, or from this climate of "
+                             "the task (e.g. benton-early) (default: the set's own site, e.g. maricopa on "
+                             "maricopa-generated)")
     parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
     parser.add_argument("--paired", nargs=2, metavar=("BASE", "OTHER"),
                         help="run nothing: compare two --out files of one task and set, season by season")
@@ -416,8 +424,9 @@ def main(argv=None) -> int:
                 raise ValueError(f"--table: {args.table} is not a table.json of `crop-sim evaluate --task`")
             settings = planner_settings(args.method, args.scenarios, args.decision_every_days)
             seasons = None if args.seasons is None else season_range(args.seasons)
-            if args.continuations is not None:
-                fitted_generator(args.continuations)  # refused before any planning
+            if args.continuations is not None:  # refused before any planning
+                from crop_sim_ros.task.scenario import get_scenario
+                continuation_source(get_scenario(str(table["task"])), args.set, args.continuations)
             summary = compare_with_table(table, args.set, seasons, settings, continuations=args.continuations)
     except (OSError, ValueError, KeyError) as error:
         print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
