@@ -230,6 +230,7 @@ def test_distinct_station_days_drops_copies_and_relabelled_years_and_refuses_two
 # scenario -> (seasons, sowing dates of the first and last season)
 SCENARIOS = {
     "benton-early-generated": (1000, "2000-03-01", "2000-03-01"),
+    "benton-early-warm-generated": (1000, "2000-03-01", "2000-03-01"),
     "gainesville-generated": (1000, "2001-02-01", "2001-02-01"),
     "gainesville-real": (7, "1978-02-01", "2007-02-01"),
     "maricopa-generated": (1000, "2001-01-15", "2001-01-15"),

@@ -107,6 +107,13 @@ def test_a_mixture_has_a_pool_per_climate_and_each_field_draws_from_its_own():
     assert pools3["benton-early"][0].extra["sowing_date"] == "2000-03-01"
     contexts3 = season_contexts(get_scenario("climates3-quota"))
     assert [fm.climate_of(contexts3[k], pools3) for k in (7, 1500, 2007)] == ["benton", "gainesville", "benton-early"]
+    # a warmed part on the same generator and sowing date: told apart by its parameters' name (benton+4C)
+    pools4 = fm.continuation_pool(get_scenario("climates4-quota"), 1)
+    assert list(pools4) == ["benton", "gainesville", "benton-early", "benton-early-warm"]
+    assert pools4["benton-early-warm"][0].extra["source"].startswith("generator(benton+4C, seed=700001")
+    contexts4 = season_contexts(get_scenario("climates4-quota"))
+    assert [fm.climate_of(contexts4[k], pools4) for k in (7, 1500, 2007, 3007)] == [
+        "benton", "gainesville", "benton-early", "benton-early-warm"]
 
 
 def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):

@@ -219,6 +219,26 @@ def test_climates3_holds_climates_quota_seasons_first_and_names_the_early_benton
     assert str(table3.sowing_dates[2000]) == "2000-03-01"
 
 
+def test_climates4_holds_climates3s_seasons_first_and_a_warmed_early_benton_part():
+    from crop_sim_ros.task.scenario import climates
+    three, four = get_scenario("climates3-quota"), get_scenario("climates4-quota")
+    assert four.n_seasons == 4000
+    assert list(climates(four)) == ["benton", "gainesville", "benton-early", "benton-early-warm"]
+    table3, table4 = core.scenario_table(three), core.scenario_table(four)
+    for k in (0, 1999, 2000, 2999):
+        np.testing.assert_array_equal(table4.weather[k], table3.weather[k])
+    assert str(table4.sowing_dates[3000]) == "2000-03-01" and table4.sources[3000].startswith("generator(benton+4C")
+    # warming is a generator's option only
+    values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
+              "weather": {"kind": "seasons", "warming_degc": 1.0,
+                          "seasons": [{"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}}
+    with pytest.raises(ValueError, match="weather.warming_degc: only a 'generator' source can be warmed"):
+        scenario_from_dict(values)
+    with pytest.raises(ValueError, match="weather.warming_degc"):
+        scenario_from_dict({**values, "sowing_date": "2000-04-01",
+                            "weather": {"kind": "generator", "generator": "benton", "warming_degc": 12}})
+
+
 def test_the_smaller_pivot_task_grows_benton_early_quotas_seasons_within_5_5_mm_a_day():
     pivot, early = get_scenario("benton-early-pivot"), get_scenario("benton-early-quota")
     assert pivot.limits.capacity_mm_per_day == 5.5 and early.limits.capacity_mm_per_day == 8.0
@@ -237,7 +257,8 @@ def test_the_smaller_pivot_task_grows_benton_early_quotas_seasons_within_5_5_mm_
 
 def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
-                 "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot"):
+                 "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot",
+                 "climates4-quota", "benton-early-warm-quota"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))

@@ -288,6 +288,28 @@ def test_changing_a_parameter_changes_the_weather():
     assert sum(s.rain_mm.sum() for s in generate_seasons(drier, SEASON_START, SEASON_DAYS, 20, seed=1)) == 0
 
 
+def test_a_warmed_generator_raises_the_temperatures_and_nothing_else_it_draws():
+    from crop_sim_ros.weather.generator import warmed
+    params = benton_parameters()
+    assert warmed(params, 0.0) is params
+    warm = warmed(params, 4.0)
+    assert warm.name == "benton+4C" and warmed(params, -1.5).name == "benton-1.5C"
+    np.testing.assert_allclose(warm.tmin_mean_wet_degc, np.array(params.tmin_mean_wet_degc) + 4.0)
+    base, hot = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, warm))
+    for b, h in zip(base, hot):
+        np.testing.assert_allclose(h.tmax_degc - b.tmax_degc, 4.0, atol=1e-9)
+        np.testing.assert_allclose(h.tmin_degc - b.tmin_degc, 4.0, atol=1e-9)
+        np.testing.assert_array_equal(h.rain_mm, b.rain_mm)  # same draws: rain, radiation, wind
+        np.testing.assert_array_equal(h.srad_mj_m2, b.srad_mj_m2)
+        assert np.all(h.vap_hpa > b.vap_hpa)  # the dew-point depression is kept: moister air when warmer
+        assert h.source.startswith("generator(benton+4C, seed=3")
+    assert np.mean([h.et0_mm("penman_monteith").sum() for h in hot]) > np.mean(
+        [b.et0_mm("penman_monteith").sum() for b in base])
+    for bad in (10.5, float("nan"), "warm"):
+        with pytest.raises((WeatherError, ValueError), match="warming_degc"):
+            warmed(params, bad)
+
+
 def test_weather_layer_imports_no_ros_gym_or_torch():
     code = ("import sys, crop_sim_ros.weather.generator, crop_sim_ros.weather.fit, crop_sim_ros.weather.csv_readers\n"
             "print(sorted(m for m in ('rclpy', 'gymnasium', 'torch') if m in sys.modules))")

@@ -18,6 +18,7 @@ SimpleIrrigation-Sensing-v0             benton-sensing        family: quota + no
 SimpleIrrigation-Blind-v0               benton-blind          family: quota + no PAW sensor
 SimpleIrrigation-Climates-v0            climates-quota        family: quota, Benton + Gainesville weather
 SimpleIrrigation-Climates3-v0           climates3-quota       family: climates-quota + Benton sown March 1
+SimpleIrrigation-Climates4-v0           climates4-quota       family: climates3-quota + that Benton +4 degC
 ======================================= ===================== ===========================================
 
 The family tasks (money, quota, capacity, sensing, climates) are documented in :mod:`crop_sim_ros.task.layout`
@@ -47,6 +48,7 @@ ENV_IDS = {
     "SimpleIrrigation-Blind-v0": "benton-blind",
     "SimpleIrrigation-Climates-v0": "climates-quota",
     "SimpleIrrigation-Climates3-v0": "climates3-quota",
+    "SimpleIrrigation-Climates4-v0": "climates4-quota",
 }
 
 for _env_id, _scenario in ENV_IDS.items():

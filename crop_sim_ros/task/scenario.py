@@ -9,7 +9,9 @@ Weather sources (``weather.kind``):
 
 - ``generator``: a pool of ``n_seasons`` seasons drawn at once by the seeded weather generator
   (``crop_sim_ros.weather.generator``) with seed ``seed``, sown on ``sowing_date``; ``reset`` picks one.
-  ``n_seasons: 1`` is a single fixed generated season. Needs no file.
+  ``n_seasons: 1`` is a single fixed generated season. ``warming_degc`` (default 0, at most 10 either way)
+  raises the generator's mean TMAX and TMIN by that much (a delta-change climate scenario,
+  ``crop_sim_ros.weather.generator.warmed``). Needs no file.
 - ``file``: one weather file (``path``, ``format``), the season starting on ``sowing_date``.
 - ``seasons``: several (file, format, sowing date) seasons; ``reset`` picks one (or the one asked for).
 - ``mixture``: the seasons of several built-in scenarios (``mixture: [benton-generated, gainesville-generated]``),
@@ -19,7 +21,8 @@ Weather sources (``weather.kind``):
 A scenario file may derive from another (``base: NAME``, a built-in name or a YAML path beside it): it takes
 the base's fields and replaces those it names (``noise``, ``economics`` and ``limits`` field by field). The
 task family's scenarios (``benton-money``, ``benton-quota``, ``benton-capacity``, ``benton-sensing``,
-``benton-blind``, ``climates-quota``, ``climates3-quota``, ``benton-early-quota``) derive from
+``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``benton-early-quota``,
+``benton-early-pivot``, ``benton-early-warm-quota``) derive from
 ``benton-generated`` this way; their terms are documented in :mod:`crop_sim_ros.task.terms`.
 
 File formats: ``agweathernet`` (AgWeatherNet daily CSV), ``dssat`` (DSSAT .WTH), ``csv`` (the plain daily CSV of
@@ -60,6 +63,7 @@ import yaml
 from ..model import FieldParameters, Management, UnknownNameError, crop_library, field_parameters
 from ..model.et0 import ET0_METHODS
 from ..weather import GENERATOR_NAMES, Site, WeatherSeries, read_agweathernet_csv, read_dssat_wth
+from ..weather.generator import MAX_WARMING_DEGC
 from ..weather.csv_readers import read_plain_csv
 from .layout import EXTENDED, PAPER, ObservationLayout
 from .terms import Economics, FarmLimits, check_number as _check_number
@@ -159,6 +163,7 @@ class WeatherSource:
     generator: str = "benton"
     seasons: tuple[SeasonFile, ...] = ()
     mixture: tuple[str, ...] = ()
+    warming_degc: float = 0.0
 
     def __post_init__(self) -> None:
         if self.kind not in WEATHER_KINDS:
@@ -167,6 +172,8 @@ class WeatherSource:
             if self.generator not in GENERATOR_PARAMETERS:
                 raise ValueError(f"weather.generator: {self.generator!r} is not one of "
                                  f"{', '.join(GENERATOR_PARAMETERS)}")
+            object.__setattr__(self, "warming_degc", _check_number("weather.warming_degc", self.warming_degc,
+                                                                   -MAX_WARMING_DEGC, MAX_WARMING_DEGC))
             _check_count("weather.n_seasons", self.n_seasons, MAX_GENERATED_SEASONS)
             if int(self.seed) != self.seed or self.seed < 0:
                 raise ValueError(f"weather.seed: {self.seed!r} is not a non-negative integer")
@@ -177,6 +184,8 @@ class WeatherSource:
         elif not self.seasons or (self.kind == "file" and len(self.seasons) != 1):
             raise ValueError(f"weather.seasons: a {self.kind!r} source needs "
                              f"{'one season' if self.kind == 'file' else 'at least one season'}")
+        if self.kind != "generator" and self.warming_degc != 0.0:
+            raise ValueError(f"weather.warming_degc: only a 'generator' source can be warmed, not {self.kind!r}")
 
 
 @dataclass(frozen=True)
@@ -283,9 +292,10 @@ class Scenario:
     def load_seasons(self) -> list[WeatherSeries]:
         """Every season of the scenario, prepared for the task (see :meth:`prepare`)."""
         if self.weather.kind == "generator":
-            from ..weather.generator import generate_seasons, generator_parameters  # noqa: PLC0415
+            from ..weather.generator import generate_seasons, generator_parameters, warmed  # noqa: PLC0415
 
-            raw = generate_seasons(generator_parameters(self.weather.generator), self.sowing_date,
+            raw = generate_seasons(warmed(generator_parameters(self.weather.generator), self.weather.warming_degc),
+                                   self.sowing_date,
                                    self.max_season_days, self.weather.n_seasons, self.weather.seed)
             return [self.prepare(series) for series in raw]
         if self.weather.kind == "mixture":
@@ -378,7 +388,8 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
     if "weather" not in values:
         raise ValueError("weather: missing (a mapping with kind: generator, file or seasons)")
     weather = _take(values.pop("weather"),
-                    {"kind", "seed", "n_seasons", "generator", "seasons", "path", "format", "mixture"}, "weather")
+                    {"kind", "seed", "n_seasons", "generator", "seasons", "path", "format", "mixture",
+                     "warming_degc"}, "weather")
     kind = weather.get("kind")
     if kind == "file":
         if sowing is None:
@@ -395,7 +406,7 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
     if kind == "mixture":
         names = weather.get("mixture")
         weather["mixture"] = tuple(names) if isinstance(names, list) else names
-    extra = set(weather) - {"kind", "seed", "n_seasons", "generator", "mixture"}
+    extra = set(weather) - {"kind", "seed", "n_seasons", "generator", "mixture", "warming_degc"}
     if extra:
         raise ValueError(f"weather.{sorted(extra)[0]}: not a field of a {kind!r} source")
     source = WeatherSource(seasons=tuple(seasons), **weather)

@@ -33,7 +33,7 @@ rclpy, gymnasium nor torch.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from datetime import date
 from pathlib import Path
 
@@ -228,6 +228,30 @@ def generator_parameters(name: str) -> GeneratorParameters:
     if params.name != name:
         raise WeatherError(f"{name}{PARAMETERS_SUFFIX}: holds parameters named {params.name!r}, not {name!r}")
     return params
+
+
+# Largest warming (degC, either sign) a scenario may add to a generator's temperatures.
+MAX_WARMING_DEGC = 10.0
+
+
+def warmed(params: GeneratorParameters, warming_degc: float) -> GeneratorParameters:
+    """``params`` with every monthly mean of TMAX and TMIN (dry and wet days) raised by ``warming_degc`` (the
+    delta-change method of climate-change impact studies: the same variability, the same rain, radiation,
+    wind and dew-point depression, so vapour pressure rises with TMIN). Named ``<name><warming>C``
+    (``benton+4C``), so a warmed climate's seasons (their source names the parameters) are told apart from the
+    original's. 0 returns ``params``."""
+    try:
+        warming = float(warming_degc)
+    except (TypeError, ValueError):
+        warming = np.nan
+    if not (np.isfinite(warming) and abs(warming) <= MAX_WARMING_DEGC):
+        raise WeatherError(f"warming_degc: {warming_degc!r} is not a finite number in "
+                           f"[-{MAX_WARMING_DEGC:g}, {MAX_WARMING_DEGC:g}]")
+    if warming == 0.0:
+        return params
+    shifted = {name: tuple(float(v) + warming for v in getattr(params, name))
+               for name in ("tmax_mean_dry_degc", "tmax_mean_wet_degc", "tmin_mean_dry_degc", "tmin_mean_wet_degc")}
+    return replace(params, name=f"{params.name}{warming:+g}C", **shifted)
 
 
 def benton_parameters() -> GeneratorParameters:
