@@ -63,8 +63,8 @@ import yaml
 from ..model import FieldParameters, Management, UnknownNameError, crop_library, field_parameters
 from ..model.et0 import ET0_METHODS
 from ..weather import GENERATOR_NAMES, Site, WeatherSeries, read_agweathernet_csv, read_dssat_wth
-from ..weather.generator import MAX_WARMING_DEGC
 from ..weather.csv_readers import read_plain_csv
+from ..weather.generator import MAX_WARMING_DEGC
 from .layout import EXTENDED, PAPER, ObservationLayout
 from .terms import Economics, FarmLimits, check_number as _check_number
 
