@@ -70,7 +70,12 @@ def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.
         if not policy_file:
             raise ValueError("policy agent needs policy_file:=<model.zip of a family agent>")
         from .learning.agent import LearnedPolicy  # noqa: PLC0415
-        return LearnedPolicy(policy_file)
+        agent = LearnedPolicy(policy_file)
+        if agent.interface.outlook is not None:
+            # its input needs the field's climate and sowing date, which no topic or parameter carries yet
+            raise ValueError(f"{policy_file}: this agent reads a climate outlook (crop-sim train --outlook); the ROS "
+                             "nodes do not carry the field's climate yet: run it with crop-sim evaluate")
+        return agent
     return make_policy(kind)
 
 

@@ -403,6 +403,7 @@ def run(args) -> int:
     # the family agent's options: refused on the paper's task rather than ignored
     family_only = [flag for flag, given in (
         ("--imitate", getattr(args, "imitate", None)), ("--paw-filter", getattr(args, "paw_filter", False)),
+        ("--outlook", getattr(args, "outlook", False)),
         ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
         ("--algorithm recurrent-ppo", getattr(args, "algorithm", "ppo") != "ppo")) if given]
     if family_only:

@@ -100,7 +100,7 @@ def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_
     # the family agent's options on the paper's task (no --task) are refused, not ignored
     from crop_sim_ros.usage import UsageError
     for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
-                        (["--imitate", "x.npz"], "--imitate")):
+                        (["--imitate", "x.npz"], "--imitate"), (["--outlook"], "--outlook")):
         args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
         with pytest.raises(UsageError, match=f"{flag}: with --task only"):
             train.run(args)

@@ -133,7 +133,7 @@ class AgentInterface:
     the network's (N, input_size) input. ``to_mm(action)`` turns the network's action for that day into mm."""
 
     def __init__(self, scaler: ObservationScaler, history: int, action_kind: str = "mm", rule=None,
-                 paw_filter=None):
+                 paw_filter=None, outlook=None):
         if action_kind not in ACTION_KINDS:
             raise ValueError(f"action kind {action_kind!r} is not one of {', '.join(ACTION_KINDS)}")
         if (action_kind == "residual") != (rule is not None):
@@ -143,13 +143,15 @@ class AgentInterface:
         self.action_kind = action_kind
         self.rule = rule
         self.paw_filter = paw_filter
+        self.outlook = outlook
         self._rule_mm: np.ndarray | None = None
 
     @property
     def input_size(self) -> int:
         """29 values per day of history, plus the filter's PAW estimate, plus the rule's proposal for the
-        residual."""
-        return EXTENDED.size * self.history.k + (self.paw_filter is not None) + (self.action_kind == "residual")
+        residual, plus the climate outlook's values."""
+        return (EXTENDED.size * self.history.k + (self.paw_filter is not None) + (self.action_kind == "residual")
+                + (0 if self.outlook is None else self.outlook.size))
 
     def reset(self) -> None:
         self.history.reset()
@@ -162,22 +164,26 @@ class AgentInterface:
         """The filter's PAW estimates (N,) mm as the network sees them: (estimate / capacity) x 2 - 1."""
         return np.asarray(paw_mm, dtype=float) / self.paw_filter.capacity_mm * 2.0 - 1.0
 
-    def network_input(self, stacked: np.ndarray, paw_mm: np.ndarray | None, rule_mm: np.ndarray | None) -> np.ndarray:
+    def network_input(self, stacked: np.ndarray, paw_mm: np.ndarray | None, rule_mm: np.ndarray | None,
+                      outlook: np.ndarray | None = None) -> np.ndarray:
         """The network's input: the (scaled, stacked) observations, then the filter's estimate, then the rule's
-        proposal, each where the interface has one."""
+        proposal, then the climate outlook's values, each where the interface has one."""
         parts = [stacked]
         if paw_mm is not None:
             parts.append(self.scaled_estimate(paw_mm)[:, None])
         if rule_mm is not None:
             parts.append((rule_mm / RESIDUAL_SPAN_MM)[:, None])
+        if outlook is not None:
+            parts.append(outlook)
         return np.concatenate(parts, axis=1).astype(np.float32)
 
-    def observe(self, raw: np.ndarray, terminal: dict[int, np.ndarray] | None = None):
+    def observe(self, raw: np.ndarray, terminal: dict[int, np.ndarray] | None = None, ended_outlook=None):
         """The network's input for the day's raw (N, 29) observations; with ``terminal`` (field -> the last
         observation of a season that just ended, which ``raw`` replaces by the next season's first), also
         returns the input each such last observation would have given (for bootstrapping a truncated season:
         its own day repeated as the history, the filter's and the rule's outputs from their state before
-        today)."""
+        today, and ``ended_outlook``'s values: a copy of the outlook with the fields' climates before today's new
+        seasons)."""
         raw = np.asarray(raw, dtype=float)
         terminal_inputs = {}
         if terminal:
@@ -187,14 +193,19 @@ class AgentInterface:
             # copies of the rule and the filter read the last observations, so each sees each observation once
             rule_last = None if self.rule is None else copy.deepcopy(self.rule).act(last)
             paw_last = None if self.paw_filter is None else copy.deepcopy(self.paw_filter).update(last)
+            # the outlook of a season that ended: its fields' climates before the training environment tells the
+            # new seasons' (ended_outlook)
+            outlook_last = None if self.outlook is None else (self.outlook if ended_outlook is None else ended_outlook)(last)
             for i in rows:
                 repeated = np.tile(self.scaler(last[i])[0], self.history.k)[None, :]
                 terminal_inputs[i] = self.network_input(repeated, None if paw_last is None else paw_last[[i]],
-                                                  None if rule_last is None else rule_last[[i]])[0]
+                                                        None if rule_last is None else rule_last[[i]],
+                                                        None if outlook_last is None else outlook_last[[i]])[0]
         stacked = self.history.push(self.scaler(raw), raw[:, DAY])
         paw_mm = None if self.paw_filter is None else self.paw_filter.update(raw)
         self._rule_mm = None if self.rule is None else np.asarray(self.rule.act(raw), dtype=float).reshape(-1)
-        return self.network_input(stacked, paw_mm, self._rule_mm), terminal_inputs
+        outlook = None if self.outlook is None else self.outlook(raw)
+        return self.network_input(stacked, paw_mm, self._rule_mm, outlook), terminal_inputs
 
     def to_mm(self, action: np.ndarray) -> np.ndarray:
         """The network's action for the day last observed -> irrigation mm (N,)."""
@@ -238,8 +249,18 @@ class LearnedPolicy(BasePolicy):
                 paw_filter = SoilWaterFilter(**self.config["paw_filter"])
             except (TypeError, ValueError) as error:
                 raise ValueError(f"{config_file}: paw_filter {self.config['paw_filter']!r}: {error}") from None
+        outlook = None
+        if self.config.get("outlook") is not None:
+            from .outlook import ClimateOutlook
+            outlook = ClimateOutlook()
+            if self.config["outlook"] != outlook.record():
+                raise ValueError(f"{config_file}: outlook {self.config['outlook']!r} is not this version's "
+                                 f"{outlook.record()!r}")
         scaler = ObservationScaler(tuple(self.config["scaler"]["mean"]), tuple(self.config["scaler"]["std"]))
-        self.interface = AgentInterface(scaler, self.config.get("history", 1), action_kind, rule, paw_filter)
+        self.interface = AgentInterface(scaler, self.config.get("history", 1), action_kind, rule, paw_filter,
+                                        outlook)
+        # the site's climate of seasons no generator made (the evaluation sets it for its real seasons)
+        self.site_climate: str | None = None
         if self.algorithm == "ppo":
             from stable_baselines3 import PPO
             self.model = PPO.load(str(self.path), device="cpu")
@@ -262,6 +283,11 @@ class LearnedPolicy(BasePolicy):
         self.interface.reset()
         self._lstm = None
 
+    def begin_season(self, contexts) -> None:
+        """An agent with a climate outlook reads its fields' climates (:class:`~.outlook.ClimateOutlook`)."""
+        if self.interface.outlook is not None:
+            self.interface.outlook.begin_season(contexts, self.site_climate)
+
     def _act_batch(self, obs):
         inputs, _ = self.interface.observe(obs)
         if self.algorithm == "ppo":
@@ -278,4 +304,5 @@ class LearnedPolicy(BasePolicy):
         return {"name": self.name, "path": str(self.path), "algorithm": self.algorithm,
                 "history": self.history.k, "action_kind": self.interface.action_kind,
                 "paw_filter": None if self.interface.paw_filter is None else self.interface.paw_filter.record(),
+                "outlook": None if self.interface.outlook is None else self.interface.outlook.record(),
                 "trained_on": self.config.get("task")}

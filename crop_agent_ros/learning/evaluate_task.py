@@ -145,12 +145,15 @@ def add_arguments(parser) -> None:
 
 @dataclass(frozen=True)
 class EvaluationSet:
-    """One evaluation set: the task's terms on ``scenario``'s weather, seasons ``seasons`` (indices)."""
+    """One evaluation set: the task's terms on ``scenario``'s weather, seasons ``seasons`` (indices);
+    ``site_climate``: the weather generator of a real set's site (what an agent with a climate outlook reads
+    there; a generated season's source names its own)."""
 
     name: str
     role: str
     scenario: object
     seasons: np.ndarray
+    site_climate: str | None = None
 
 
 def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[EvaluationSet]:
@@ -163,11 +166,13 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
                         else f"transfer test: trained on {generators[0]} weather only")
     heldout = get_scenario("heldout", task.data_dir)
     sets = [EvaluationSet(HELD_OUT_REAL, "held-out real seasons (Benton 2000, Paterson 1992-1995)",
-                          with_weather_of(task, heldout), np.arange(heldout.n_seasons))]
+                          with_weather_of(task, heldout), np.arange(heldout.n_seasons), site_climate="benton")]
     other_dates = []  # far sets of a site sown on another date (a part named apart from its generator)
     for name, source in sources.items():
         generator = source.weather.generator
         sown = "" if name == generator else f", sown {source.sowing_date:%B} {source.sowing_date.day}"
+        if source.weather.warming_degc:
+            sown += f", {source.weather.warming_degc:+g} degC"
         far = replace(reseeded(source, far_seed, far_seasons), name=f"{name}-generated-seed{far_seed}")
         (sets if name == generator else other_dates).append(EvaluationSet(
             f"far-{name}", f"far generated seeds ({generator} generator{sown}, seed {far_seed})",
@@ -178,7 +183,7 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
                               with_weather_of(task, reseeded(generated, far_seed, far_seasons)),
                               np.arange(far_seasons)))
     sets.append(EvaluationSet("maricopa-real", f"{held_out_climate} (Maricopa AZ, real seasons 2007-2009)",
-                              with_weather_of(task, real), np.arange(real.n_seasons)))
+                              with_weather_of(task, real), np.arange(real.n_seasons), site_climate="maricopa"))
     # Those come last: each set's terms are drawn with a seed from its position, so climates3-quota's other
     # sets keep climates-quota's positions, seasons and terms (their oracle returns are the same).
     return sets + other_dates
@@ -386,6 +391,8 @@ def run_unit(unit: Unit, evaluation_set: EvaluationSet, terms: dict, policy) -> 
         part = replace(evaluation_set, seasons=evaluation_set.seasons[unit.start:unit.stop])
         returns, plans = oracle_returns(part, {name: values[unit.start:unit.stop] for name, values in terms.items()})
     else:
+        if hasattr(policy, "site_climate"):  # an agent with a climate outlook, on real seasons
+            policy.site_climate = evaluation_set.site_climate
         returns, plans = run_episodes(policy, evaluation_set.scenario, evaluation_set.seasons, seed=unit.noise_seed,
                                       terms=terms).episode_return, None
     return UnitResult(returns, plans, time.perf_counter() - started)

@@ -239,6 +239,18 @@ def serves(file_task: str, task_name: str) -> bool:
     return replace(recorded, **neutral) == task and all(part in task_parts for part in recorded_parts)
 
 
+def _season_climates(task_name: str, seasons: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The climate and sowing day of the year of each row's season (a position of ``task_name``'s pool): what
+    a climate outlook (:mod:`crop_agent_ros.learning.outlook`) reads."""
+    from crop_sim_ros.task.scenario import get_scenario
+    from .outlook import pool_climates
+    pool = pool_climates(get_scenario(task_name))
+    if len(seasons) and int(np.max(seasons)) >= len(pool):
+        raise ValueError(f"season {int(np.max(seasons))} is not in {task_name}'s pool of {len(pool)} seasons")
+    climates = np.array([pool[int(s)][0] for s in seasons], dtype=object)
+    return climates, np.array([pool[int(s)][1] for s in seasons], dtype=int)
+
+
 def load_demonstrations(patterns: list[str], task_name: str) -> dict:
     """The demonstration files matching ``patterns`` (globs), concatenated; each must be of ``task_name`` or of a
     task whose demonstrations serve it (:func:`serves`)."""
@@ -255,6 +267,7 @@ def load_demonstrations(patterns: list[str], task_name: str) -> dict:
                                  "in more than holding fewer of its weather parts (and its pivot's capacity)")
             part = {k: data[k] for k in ("observations", "mm", "season", "day")}
             part["file"] = np.full(len(part["mm"]), number)
+            part["climate"], part["sowing_day"] = _season_climates(str(data["task"]), part["season"])
         if not (np.all(np.isfinite(part["observations"])) and np.all(np.isfinite(part["mm"]))
                 and np.all(part["mm"] >= 0.0)):
             raise UsageError(f"--imitate {path}: observations and mm must be finite, mm >= 0")
@@ -271,8 +284,12 @@ def network_inputs(interface, demonstrations: dict) -> tuple[np.ndarray, np.ndar
     raw = demonstrations["observations"].astype(float)
     k = interface.history.k
     order = np.lexsort((demonstrations["day"], demonstrations["season"], demonstrations["file"]))
+    outlook = None
+    if interface.outlook is not None:
+        from .outlook import features
+        outlook = features(demonstrations["climate"][order], demonstrations["sowing_day"][order], raw[order])
     if k == 1 and interface.paw_filter is None:
-        return interface.scaler(raw)[order], order
+        return interface.network_input(interface.scaler(raw[order]), None, None, outlook), order
     day = demonstrations["day"][order]
     episode = np.stack([demonstrations["file"][order], demonstrations["season"][order]])
     starts = np.r_[True, np.any(episode[:, 1:] != episode[:, :-1], axis=0)]
@@ -289,7 +306,7 @@ def network_inputs(interface, demonstrations: dict) -> tuple[np.ndarray, np.ndar
     paw_mm = None
     if interface.paw_filter is not None:
         paw_mm = _filtered(interface.paw_filter, raw[order], np.cumsum(starts) - 1, day)
-    return interface.network_input(np.concatenate(lagged, axis=1), paw_mm, None), order
+    return interface.network_input(np.concatenate(lagged, axis=1), paw_mm, None, outlook), order
 
 
 def _filtered(paw_filter, raw: np.ndarray, episode: np.ndarray, day: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ the run's policy (``model.zip`` + ``model.json``: the checkpoint with the best v
 
 from __future__ import annotations
 
+import copy
 import csv
 import json
 import sys
@@ -45,6 +46,10 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--paw-filter", action="store_true",
                         help="with --task: the network also sees a PAW estimate, the checkbook corrected by each "
                              "reading (a Kalman filter knowing the task's sensor error; a labelled feature)")
+    parser.add_argument("--outlook", action="store_true",
+                        help="with --task: the network also sees a climate outlook, the quota left against the "
+                             "demand the field's climate normally brings in the next 60 days and that demand's "
+                             "trend (crop_agent_ros.learning.outlook; a labelled feature)")
     parser.add_argument("--imitate", nargs="+", default=None, metavar="GLOB",
                         help="with --task: first fit the policy to these demonstrations of the causal MPC "
                              "(`crop-sim demonstrate`; behaviour cloning), then PPO on the reward (a variant)")
@@ -80,6 +85,10 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
     from crop_sim_ros.task.sb3_vec import IrrigationSB3VecEnv
 
     price = EXTENDED.index("tuber_price_usd_per_t")
+    pool = None
+    if interface.outlook is not None:
+        from .outlook import pool_climates
+        pool = pool_climates(scenario)
 
     class TaskWrapper(VecEnvWrapper):
         def __init__(self):
@@ -90,9 +99,16 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
         def _value_per_t(self, raw):
             return raw[:, price] / dry_matter_fraction
 
+        def _tell_outlook(self):
+            """The fields' climates for the seasons they are in now (an agent with a climate outlook)."""
+            if interface.outlook is not None:
+                fields = [pool[k] for k in self.venv.venv.field_seasons]
+                interface.outlook.set_fields([c for c, _ in fields], [d for _, d in fields])
+
         def reset(self):
             raw = self.venv.reset()
             interface.reset()
+            self._tell_outlook()
             self.phi = np.zeros(self.num_envs)
             return interface.observe(raw)[0]
 
@@ -108,7 +124,11 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
             # (a terminal observation is bootstrapped only when the weather ran out)
             terminal = {i: infos[i]["terminal_observation"] for i in np.flatnonzero(dones)
                         if "terminal_observation" in infos[i]}
-            inputs, terminal_inputs = interface.observe(raw, terminal)
+            ended = None
+            if terminal and interface.outlook is not None:
+                ended = copy.deepcopy(interface.outlook)  # the ended seasons' climates, for their last inputs
+            self._tell_outlook()
+            inputs, terminal_inputs = interface.observe(raw, terminal, ended)
             for i, terminal_input in terminal_inputs.items():
                 infos[i]["terminal_observation"] = terminal_input
             return inputs, shaped.astype(np.float32), dones, infos
@@ -178,7 +198,11 @@ def train_task(args) -> dict:
     if getattr(args, "paw_filter", False):
         # the sensor's stated error is the task's PAW noise (a farmer knows the probe's specification)
         paw_filter = SoilWaterFilter(FarmFacts.of_scenario(scenario).capacity_mm, scenario.noise.paw_mm)
-    interface = AgentInterface(scaler, args.history, action_kind, rule, paw_filter)
+    outlook = None
+    if getattr(args, "outlook", False):
+        from .outlook import ClimateOutlook
+        outlook = ClimateOutlook()
+    interface = AgentInterface(scaler, args.history, action_kind, rule, paw_filter, outlook)
     venv = training_env(scenario, args.n_envs, args.seed, interface, float(params.fields.harvest_index[0]),
                         params.dry_matter_fraction)
     lr0, lr1 = args.learning_rate, args.final_learning_rate
@@ -232,6 +256,7 @@ def train_task(args) -> dict:
               **({} if rule is None else {"rule": {**rule_record(rule), "file": rule_file(scenario.name).name}}),
               **({} if imitation is None else {"imitation": imitation}),
               **({} if paw_filter is None else {"paw_filter": paw_filter.record()}),
+              **({} if outlook is None else {"outlook": outlook.record()}),
               "scaler": {"mean": list(scaler.mean), "std": list(scaler.std)},
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",
               "hyper_parameters": {k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "n_steps",

@@ -126,6 +126,14 @@ class IrrigationVectorEnv(VectorEnv):
         self._returns = np.zeros(self.num_envs)
         self._all = np.ones(self.num_envs, dtype=bool)
 
+    @property
+    def field_seasons(self) -> np.ndarray:
+        """The pool position (index into ``seasons``) of each field's current season (N,); after an autoreset,
+        the new season's. RuntimeError before the first reset."""
+        if self._state is None:
+            raise RuntimeError("field_seasons: reset the environment first")
+        return np.asarray(self._state.season).copy()
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         self._noise_rng = PrefetchedNormal(int(self.np_random.integers(2**63)), self.num_envs,

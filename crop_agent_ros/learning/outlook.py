@@ -1,0 +1,142 @@
+"""The climate outlook a family agent may see (``crop-sim train --task T --outlook``; a labelled feature of the
+imitation variant, like the soil-water filter): how the water left compares with the demand the site's climate
+normally brings over the next two months, and whether that demand is rising.
+
+A farm's controller knows its site's climate (its normals: weather networks and FAO-56 scheduling publish
+them); the observation does not carry it. The planner the students imitate knows it (its continuations are
+seasons of the field's own climate), and on a climate no training season comes from (Maricopa, AZ) a planner
+given another climate's statistics does worse than the rule (README, `climates3-quota`). Two numbers carry
+the part of that knowledge a quota decision needs, in units that mean the same in every climate:
+
+===================== ====== ===============================================================================
+Name                  Unit   Value (field sown on day of year s, on day t of its season, Q mm of quota left)
+===================== ====== ===============================================================================
+water_vs_demand       1      ln(max(Q, 1) / E60), E60 the normal ET0 of days s+t .. s+t+59 (mm)
+demand_trend          1      2 ln(E60 / (60 x the mean normal ET0 of days s+t-14 .. s+t-1))
+===================== ====== ===============================================================================
+
+Normals: each climate's mean daily ET0 (FAO-56 Penman-Monteith, mm) by day of the year over
+:data:`NORMAL_YEARS` years drawn by its weather generator with seed :data:`NORMALS_SEED` (no training,
+validation, evaluation or continuation pool uses it). A climate is a fitted generator, warmed or not
+(``benton``, ``benton+4C``: the name its seasons' source carries). A generated season's climate is read from
+its source; a real season's (held-out Benton, Maricopa) is its site's generator, given by the evaluation set
+(for Maricopa's three real seasons, a generator whose fit includes those years: that set's outlook is not
+independent of it; the 50 generated Maricopa seasons are).
+"""
+
+from __future__ import annotations
+
+import datetime
+import functools
+
+import numpy as np
+
+from crop_sim_ros.task.layout import EXTENDED
+
+NORMALS_SEED = 31_337
+NORMAL_YEARS = 60
+AHEAD_DAYS = 60
+BEHIND_DAYS = 14
+FEATURES = ("water_vs_demand", "demand_trend")
+_DAY = EXTENDED.index("days_since_sowing")
+_QUOTA = EXTENDED.index("quota_remaining_mm")
+
+
+@functools.lru_cache(maxsize=None)
+def normal_et0_mm(climate: str) -> np.ndarray:
+    """(365,) mean daily ET0 (mm) by day of the year (0 = January 1) of ``climate`` (``<generator>`` or
+    ``<generator><+warming>C``); ValueError naming the fitted generators for an unknown one."""
+    from crop_sim_ros.weather.generator import GENERATOR_NAMES, generate_seasons, generator_parameters, warmed
+    name, sign, warming = climate.partition("+") if "+" in climate else climate.partition("-")
+    if name not in GENERATOR_NAMES or (sign and not warming.endswith("C")):
+        raise ValueError(f"climate outlook: no climate {climate!r} (fitted generators: {', '.join(GENERATOR_NAMES)},"
+                         " warmed as in benton+4C)")
+    params = warmed(generator_parameters(name), float(sign + warming[:-1]) if sign else 0.0)
+    years = generate_seasons(params, datetime.date(2001, 1, 1), 730, NORMAL_YEARS, NORMALS_SEED)
+    et0 = np.stack([series.et0_mm("penman_monteith") for series in years])
+    normals = et0.reshape(NORMAL_YEARS, 2, 365).mean(axis=(0, 1))
+    normals.setflags(write=False)
+    return normals
+
+
+def climate_of_source(source: str) -> str | None:
+    """The climate of a generated season (its source names the generator's parameters), else None."""
+    from crop_sim_ros.weather.generator import generator_of_source
+    return generator_of_source(source)
+
+
+def scenario_climate(scenario) -> str:
+    """The climate of a generated-weather scenario (its generator, warmed as it says)."""
+    warming = float(scenario.weather.warming_degc)
+    return scenario.weather.generator + (f"{warming:+g}C" if warming else "")
+
+
+def pool_climates(task) -> list[tuple[str, int]]:
+    """(climate, sowing day of year) of every season of ``task``'s training pool, in pool order (each generated
+    part's ``n_seasons`` in turn)."""
+    from crop_sim_ros.task.scenario import generated_parts
+    return [(scenario_climate(part), day_of_year(part.sowing_date))
+            for part in generated_parts(task) for _ in range(part.weather.n_seasons)]
+
+
+def day_of_year(day: datetime.date | str) -> int:
+    """0-based day of the year (a leap year's December 31 folds onto day 364)."""
+    date = day if isinstance(day, datetime.date) else datetime.date.fromisoformat(str(day))
+    return min(date.timetuple().tm_yday - 1, 364)
+
+
+def features(climates, sowing_days, obs: np.ndarray) -> np.ndarray:
+    """(N, 2) :data:`FEATURES` of N fields: their climates and sowing days of the year, today's observations
+    (days since sowing, quota left)."""
+    obs = np.atleast_2d(np.asarray(obs, dtype=float))
+    start = np.asarray(sowing_days, dtype=int) + obs[:, _DAY].astype(int)
+    quota = np.maximum(obs[:, _QUOTA], 1.0)
+    out = np.empty((len(obs), 2))
+    climates = np.asarray(climates, dtype=object)
+    for climate in np.unique(climates):
+        mine = climates == climate
+        normals = normal_et0_mm(str(climate))
+        days = start[mine]
+        ahead = normals[(days[:, None] + np.arange(AHEAD_DAYS)) % 365].sum(axis=1)
+        behind = normals[(days[:, None] - BEHIND_DAYS + np.arange(BEHIND_DAYS)) % 365].mean(axis=1)
+        out[mine, 0] = np.log(quota[mine] / ahead)
+        out[mine, 1] = 2.0 * np.log(ahead / (AHEAD_DAYS * behind))
+    return out.astype(np.float32)
+
+
+class ClimateOutlook:
+    """Each field's climate and sowing day for the season it is in, and its :func:`features`. Fields are set by
+    :meth:`set_fields` (the training environment, from its seasons) or :meth:`begin_season` (a policy run, from
+    the seasons' contexts; a season whose weather no generator made takes ``fallback``, its site's climate)."""
+
+    size = len(FEATURES)
+
+    def __init__(self):
+        self.climates: list[str] | None = None
+        self.sowing_days: np.ndarray | None = None
+
+    def record(self) -> dict:
+        return {"features": list(FEATURES), "normals_seed": NORMALS_SEED, "normal_years": NORMAL_YEARS}
+
+    def set_fields(self, climates, sowing_days) -> None:
+        for climate in set(climates):
+            normal_et0_mm(climate)  # an unknown climate is refused here, before any step
+        self.climates, self.sowing_days = list(climates), np.asarray(sowing_days, dtype=int)
+
+    def begin_season(self, contexts, fallback: str | None = None) -> None:
+        climates = []
+        for context in contexts:
+            climate = climate_of_source(str(context.extra.get("source", ""))) or fallback
+            if climate is None:
+                raise ValueError(f"climate outlook: season {context.name} ({context.extra.get('source')}) was not "
+                                 "generated and no site climate was given for it")
+            climates.append(climate)
+        self.set_fields(climates, [day_of_year(c.extra["sowing_date"]) for c in contexts])
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        if self.climates is None or len(self.climates) != len(np.atleast_2d(obs)):
+            raise ValueError("climate outlook: this agent reads its fields' climate; it is told it before the "
+                             "season (a policy run's begin_season, or the training environment), and "
+                             f"{'was not' if self.climates is None else f'was told {len(self.climates)} fields, not'}"
+                             f"{'' if self.climates is None else ' ' + str(len(np.atleast_2d(obs)))}")
+        return features(self.climates, self.sowing_days, obs)

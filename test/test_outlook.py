@@ -1,0 +1,112 @@
+"""The climate outlook a family agent may read (crop_agent_ros.learning.outlook): normals, its two values, the
+climates of a pool's seasons, and an agent that reads it in training, from a file and in an evaluation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from crop_agent_ros.learning import outlook
+from crop_agent_ros.policies.rollout import season_contexts
+from crop_sim_ros.task import get_scenario
+from crop_sim_ros.task.layout import EXTENDED
+
+from policy_files import tiny_task_training
+
+DAY, QUOTA = EXTENDED.index("days_since_sowing"), EXTENDED.index("quota_remaining_mm")
+
+
+def test_normals_are_the_generators_mean_year_and_a_warmed_climate_has_its_own():
+    benton, maricopa = outlook.normal_et0_mm("benton"), outlook.normal_et0_mm("maricopa")
+    assert benton.shape == maricopa.shape == (365,) and np.all(benton > 0)
+    np.testing.assert_array_equal(outlook.normal_et0_mm.__wrapped__("benton"), benton)  # seeded: the same year
+    assert benton[170:200].mean() > 2.0 * benton[:30].mean()  # a Washington summer against its winter
+    assert maricopa[150:180].mean() > benton[150:180].mean()  # the desert in June
+    assert np.all(outlook.normal_et0_mm("benton+4C")[120:240] > benton[120:240])
+    for bad in ("atlantis", "benton+4", "benton*4C"):
+        with pytest.raises(ValueError, match="climate outlook: no climate"):
+            outlook.normal_et0_mm(bad)
+
+
+def test_the_two_values_are_water_left_against_demand_ahead_and_that_demands_trend():
+    obs = np.zeros((3, EXTENDED.size))
+    obs[:, DAY], obs[:, QUOTA] = [0, 40, 40], [300.0, 120.0, 0.0]
+    climates, sown = ["benton", "maricopa", "maricopa"], [59, 14, 14]  # March 1, January 15
+    values = outlook.features(climates, sown, obs)
+    for i in range(3):
+        normals = outlook.normal_et0_mm(climates[i])
+        start = sown[i] + int(obs[i, DAY])
+        ahead = normals[start:start + 60].sum()
+        behind = normals[start - 14:start].mean()
+        np.testing.assert_allclose(values[i], [np.log(max(obs[i, QUOTA], 1.0) / ahead),
+                                               2.0 * np.log(ahead / (60.0 * behind))], rtol=1e-5)
+    assert values[1, 1] > 0.0  # Maricopa's demand rises from mid-February
+    # the year wraps: a field late in the year reads January's normals
+    late = outlook.features(["benton"], [360], obs[:1])
+    normals = outlook.normal_et0_mm("benton")
+    ahead = normals[(360 + np.arange(60)) % 365].sum()
+    np.testing.assert_allclose(late[0, 0], np.log(300.0 / ahead), rtol=1e-5)
+
+
+def test_a_pools_seasons_have_their_parts_climates_and_sowing_days():
+    pool = outlook.pool_climates(get_scenario("climates4-quota"))
+    assert len(pool) == 4000
+    assert [pool[k] for k in (0, 1000, 2000, 3999)] == [("benton", 91), ("gainesville", 31), ("benton", 60),
+                                                         ("benton+4C", 60)]
+
+
+def test_an_agent_is_told_its_fields_climates_before_the_season_or_refuses_to_act():
+    reader = outlook.ClimateOutlook()
+    obs = np.zeros((2, EXTENDED.size))
+    with pytest.raises(ValueError, match="reads its fields' climate; .* was not"):
+        reader(obs)
+    contexts = season_contexts(get_scenario("climates4-quota"))
+    reader.begin_season([contexts[5], contexts[3005]])
+    assert reader.climates == ["benton", "benton+4C"] and list(reader.sowing_days) == [91, 60]
+    assert reader(obs).shape == (2, 2)
+    real = season_contexts(get_scenario("maricopa-real"))[:1]
+    with pytest.raises(ValueError, match="was not generated and no site climate was given"):
+        reader.begin_season(real)
+    reader.begin_season(real, "maricopa")
+    assert reader.climates == ["maricopa"] and reader.sowing_days[0] == 14
+    with pytest.raises(ValueError, match="was told 1 fields, not 2"):
+        reader(obs)
+
+
+def test_an_outlook_agent_trains_from_files_and_reads_its_climates_in_an_evaluation(tmp_path):
+    from crop_agent_ros.learning import imitation
+    from crop_agent_ros.learning.agent import LearnedPolicy
+    from crop_agent_ros.learning.evaluate_task import Unit, evaluation_sets, run_unit, set_terms
+    from crop_agent_ros.policies import family_mpc as fm
+    from crop_agent_ros.policies.rollout import run_episodes
+    cheap = fm.MpcSettings(scenarios=1, decision_every_days=30, replan_first_step_mm=2.0, finest_step_mm=1.0)
+    data = imitation.demonstrate("benton-early-quota", np.array([5]), cheap, action_noise_mm=0.0, seed=2)
+    np.savez_compressed(tmp_path / "early.npz", **data)
+    loaded = imitation.load_demonstrations([str(tmp_path / "early.npz")], "climates3-quota")
+    assert set(loaded["climate"]) == {"benton"} and set(loaded["sowing_day"]) == {60}  # March 1 (2000: leap)
+    out = tmp_path / "run"
+    tiny_task_training(out, "climates3-quota", 1, "--outlook", "--imitate", str(tmp_path / "early.npz"),
+                       "--imitation-epochs", "2", timesteps=256)
+    config = json.loads((out / "model.json").read_text())
+    assert config["outlook"] == outlook.ClimateOutlook().record()
+    agent = LearnedPolicy(out / "model.zip")
+    assert agent.interface.input_size == EXTENDED.size + 2 and agent.describe()["outlook"] == config["outlook"]
+    inputs, order = imitation.network_inputs(agent.interface, loaded)
+    np.testing.assert_allclose(inputs[:, -2:], outlook.features(
+        loaded["climate"][order], loaded["sowing_day"][order], loaded["observations"][order]), rtol=1e-6)
+    assert np.all(np.isfinite(run_episodes(agent, "climates3-quota", np.array([1, 2500]), seed=0).episode_return))
+    # the evaluation tells it a real set's site climate; a generated set's seasons carry their own
+    sets = {s.name: s for s in evaluation_sets(get_scenario("climates3-quota"), 2)}
+    assert (sets["heldout-real"].site_climate, sets["maricopa-real"].site_climate) == ("benton", "maricopa")
+    assert sets["maricopa-generated"].site_climate is None
+    real = sets["maricopa-real"]
+    terms = set_terms(real, 1)
+    result = run_unit(Unit(0, "agent", 0, 0, len(real.seasons)), real, terms, agent)
+    assert result.returns.shape == (len(real.seasons),) and np.all(np.isfinite(result.returns))
+    assert agent.interface.outlook.climates == ["maricopa"] * len(real.seasons)
+    # the ROS nodes cannot tell it its climate yet: refused when the node loads it, not on its first step
+    from crop_agent_ros.agent import make_agent_policy
+    with pytest.raises(ValueError, match="reads a climate outlook .* the ROS nodes do not carry"):
+        make_agent_policy("agent", policy_file=str(out / "model.zip"))
