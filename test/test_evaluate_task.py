@@ -33,7 +33,8 @@ def rule_dir(tmp_path_factory):
     from crop_agent_ros.policies import family_tuning
     directory = tmp_path_factory.mktemp("rules")
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(family_tuning, "rule_file", lambda task: directory / f"family_{task}.json")
+        patch.setattr(family_tuning, "rule_file",
+                      lambda task, outlook=False: directory / f"family_{task}{'-outlook' if outlook else ''}.json")
         yield directory
 
 

@@ -1,4 +1,4 @@
-"""The climate outlook a family agent may read (crop_agent_ros.learning.outlook): normals, its two values, the
+"""The climate outlook a family agent may read (crop_agent_ros.policies.outlook): normals, its two values, the
 climates of a pool's seasons, and an agent that reads it in training, from a file and in an evaluation."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from crop_agent_ros.learning import outlook
+from crop_agent_ros.policies import outlook
 from crop_agent_ros.policies.rollout import season_contexts
 from crop_sim_ros.task import get_scenario
 from crop_sim_ros.task.layout import EXTENDED
@@ -110,3 +110,42 @@ def test_an_outlook_agent_trains_from_files_and_reads_its_climates_in_an_evaluat
     from crop_agent_ros.agent import make_agent_policy
     with pytest.raises(ValueError, match="reads a climate outlook .* the ROS nodes do not carry"):
         make_agent_policy("agent", policy_file=str(out / "model.zip"))
+
+
+def test_todays_share_of_the_normal_demand_left_and_the_rule_that_budgets_by_it():
+    from crop_agent_ros.policies.family import FarmFacts, WaterBudgetRule
+    obs = np.zeros((2, EXTENDED.size))
+    days_left = EXTENDED.index("season_days_left")
+    obs[:, DAY], obs[:, days_left], obs[:, QUOTA] = [10, 100], [140, 0], [200.0, 50.0]
+    share = outlook.normal_share_today(["maricopa", "benton"], [14, 300], obs)
+    normals_m, normals_b = outlook.normal_et0_mm("maricopa"), outlook.normal_et0_mm("benton")
+    np.testing.assert_allclose(share[0], normals_m[24] / normals_m[24:164].sum())
+    np.testing.assert_allclose(share[1], 1.0)  # the last day: all that is left is today's
+    # a rule with outlook_pace spends at most pace x quota left x that share
+    facts = FarmFacts(capacity_mm=120.0, tsum_degc_d=1500.0)
+    plain = WaterBudgetRule(facts, {"margin_mm": 40.0})
+    paced = WaterBudgetRule(facts, {"margin_mm": 40.0, "outlook_pace": 2.0})
+    assert plain.outlook is None and paced.outlook is not None
+    field = np.zeros((1, EXTENDED.size))
+    field[0, DAY], field[0, days_left], field[0, QUOTA] = 30, 120, 100.0
+    field[0, EXTENDED.index("capacity_mm_per_day")], field[0, EXTENDED.index("et0_mm")] = 25.0, 5.0
+    field[0, EXTENDED.index("paw_mm")], field[0, EXTENDED.index("paw_observed")] = 20.0, 1.0
+    field[0, EXTENDED.index("tuber_price_usd_per_t")] = 200.0
+    with pytest.raises(ValueError, match="reads its fields' climate"):
+        paced.act(field)
+    paced.outlook.set_fields(["benton"], [90])
+    wanted = plain.act(field)[0]
+    limit = 2.0 * 100.0 * outlook.normal_share_today(["benton"], [90], field)[0]
+    assert 0.0 < limit < wanted and paced.act(field)[0] == pytest.approx(limit)
+
+
+def test_the_tuner_searches_the_climatological_budget_only_when_asked():
+    from crop_agent_ros.policies import family_tuning
+    task = get_scenario("climates3-quota")
+    seasons = family_tuning.training_seasons(task, 0, 0)
+    plain = family_tuning.tune_rule(task, seasons, candidates=3, rounds=0, log=lambda *_: None)
+    assert "outlook_pace" not in plain["parameters"]
+    names = family_tuning.PLAIN_NAMES + ("outlook_pace",)
+    asked = family_tuning.tune_rule(task, seasons, candidates=6, rounds=0, names=names, log=lambda *_: None)
+    assert "outlook_pace" in asked["parameters"]
+    assert family_tuning.rule_file("x", outlook=True).name == "family_x-outlook.json"

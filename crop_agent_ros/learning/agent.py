@@ -251,7 +251,7 @@ class LearnedPolicy(BasePolicy):
                 raise ValueError(f"{config_file}: paw_filter {self.config['paw_filter']!r}: {error}") from None
         outlook = None
         if self.config.get("outlook") is not None:
-            from .outlook import ClimateOutlook
+            from ..policies.outlook import ClimateOutlook
             outlook = ClimateOutlook()
             if self.config["outlook"] != outlook.record():
                 raise ValueError(f"{config_file}: outlook {self.config['outlook']!r} is not this version's "

@@ -106,6 +106,9 @@ def add_task_arguments(parser) -> None:
                         help="a group of trained runs (one directory per training seed, glob allowed, quote it), "
                              "e.g. 'ppo=runs/benton-quota-ppo-s*'; repeat for more groups")
     parser.add_argument("--noise-seeds", type=int, default=5, help="observation-noise seeds 0..K-1 per season")
+    parser.add_argument("--rule-outlook", action="store_true",
+                        help="the reference rule also budgets by the climate's normal demand (family_<task>-outlook"
+                             ".json, `crop-sim tune-rule --task T --outlook`): the knowledge of an agent's outlook")
     parser.add_argument("--far-seasons", type=int, default=50, help="seasons of each far generated set")
     parser.add_argument("--far-seed", type=int, default=FAR_SEED, help="weather seed of the far generated sets")
     parser.add_argument("--terms-seed", type=int, default=TERMS_SEED, help="seed of the drawn terms (set i: + i)")
@@ -300,20 +303,22 @@ def load_agent(path: Path, name: str):
 def the_rule(task, args, log):
     """The tuned rule of ``task`` and where it came from; tuned on training seasons and written if missing."""
     from ..policies import family_tuning
-    path = family_tuning.rule_file(task.name)
+    outlook = bool(getattr(args, "rule_outlook", False))
+    path = family_tuning.rule_file(task.name, outlook)
     if path.is_file():
         with user_input(f"tuned rule {path}", (ValueError, KeyError, TypeError, OSError)):
-            return family_tuning.tuned_rule(task.name), {"file": str(path), "tuned_now": False}
+            return family_tuning.tuned_rule(task.name, outlook=outlook), {"file": str(path), "tuned_now": False}
     seasons = family_tuning.training_seasons(task, 0, args.tune_seasons - 1)
     log(f"{path} is missing: tuning the rule now on {len(seasons)} generated training seasons "
         f"({args.tune_candidates} candidates, {args.tune_rounds} rounds: as `crop-sim tune-rule --task {task.name} "
-        f"--seasons 0..{args.tune_seasons - 1} --candidates {args.tune_candidates} --rounds {args.tune_rounds}`) "
-        "and writing it")
+        f"--seasons 0..{args.tune_seasons - 1} --candidates {args.tune_candidates} --rounds {args.tune_rounds}"
+        f"{' --outlook' if outlook else ''}`) and writing it")
+    names = family_tuning.PLAIN_NAMES + (("outlook_pace",) if outlook else ())
     result = family_tuning.tune_rule(task, seasons, seed=0, candidates=args.tune_candidates,
-                                     rounds=args.tune_rounds, log=log)
-    family_tuning.write_tuned(task.name, result)
-    return family_tuning.tuned_rule(task.name), {"file": str(path), "tuned_now": True,
-                                                 "tuned_on_seasons": seasons.tolist()}
+                                     rounds=args.tune_rounds, names=names, log=log)
+    family_tuning.write_tuned(task.name, result, outlook)
+    return family_tuning.tuned_rule(task.name, outlook=outlook), {"file": str(path), "tuned_now": True,
+                                                                  "tuned_on_seasons": seasons.tolist()}
 
 
 @dataclass(frozen=True)

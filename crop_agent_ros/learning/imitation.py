@@ -241,9 +241,9 @@ def serves(file_task: str, task_name: str) -> bool:
 
 def _season_climates(task_name: str, seasons: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The climate and sowing day of the year of each row's season (a position of ``task_name``'s pool): what
-    a climate outlook (:mod:`crop_agent_ros.learning.outlook`) reads."""
+    a climate outlook (:mod:`crop_agent_ros.policies.outlook`) reads."""
     from crop_sim_ros.task.scenario import get_scenario
-    from .outlook import pool_climates
+    from ..policies.outlook import pool_climates
     pool = pool_climates(get_scenario(task_name))
     if len(seasons) and int(np.max(seasons)) >= len(pool):
         raise ValueError(f"season {int(np.max(seasons))} is not in {task_name}'s pool of {len(pool)} seasons")
@@ -286,7 +286,7 @@ def network_inputs(interface, demonstrations: dict) -> tuple[np.ndarray, np.ndar
     order = np.lexsort((demonstrations["day"], demonstrations["season"], demonstrations["file"]))
     outlook = None
     if interface.outlook is not None:
-        from .outlook import features
+        from ..policies.outlook import features
         outlook = features(demonstrations["climate"][order], demonstrations["sowing_day"][order], raw[order])
     if k == 1 and interface.paw_filter is None:
         return interface.network_input(interface.scaler(raw[order]), None, None, outlook), order

@@ -49,7 +49,7 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--outlook", action="store_true",
                         help="with --task: the network also sees a climate outlook, the quota left against the "
                              "demand the field's climate normally brings in the next 60 days and that demand's "
-                             "trend (crop_agent_ros.learning.outlook; a labelled feature)")
+                             "trend (crop_agent_ros.policies.outlook; a labelled feature)")
     parser.add_argument("--imitate", nargs="+", default=None, metavar="GLOB",
                         help="with --task: first fit the policy to these demonstrations of the causal MPC "
                              "(`crop-sim demonstrate`; behaviour cloning), then PPO on the reward (a variant)")
@@ -87,7 +87,7 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
     price = EXTENDED.index("tuber_price_usd_per_t")
     pool = None
     if interface.outlook is not None:
-        from .outlook import pool_climates
+        from ..policies.outlook import pool_climates
         pool = pool_climates(scenario)
 
     class TaskWrapper(VecEnvWrapper):
@@ -200,7 +200,7 @@ def train_task(args) -> dict:
         paw_filter = SoilWaterFilter(FarmFacts.of_scenario(scenario).capacity_mm, scenario.noise.paw_mm)
     outlook = None
     if getattr(args, "outlook", False):
-        from .outlook import ClimateOutlook
+        from ..policies.outlook import ClimateOutlook
         outlook = ClimateOutlook()
     interface = AgentInterface(scaler, args.history, action_kind, rule, paw_filter, outlook)
     venv = training_env(scenario, args.n_envs, args.seed, interface, float(params.fields.harvest_index[0]),

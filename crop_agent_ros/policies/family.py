@@ -22,6 +22,11 @@ the soil's water capacity, the cultivar's thermal time to maturity). Each day it
 6. **Weighs money**: it irrigates only when the yield the water protects is worth more than it costs, a
    test it makes by ``value_ratio``: no irrigation when water cost per mm > ``value_ratio`` x tuber price per t
    (both observed).
+7. **Budgets by the climate's normal demand** (``outlook_pace``, inf: not at all; the same knowledge as an
+   agent's climate outlook, :mod:`crop_agent_ros.policies.outlook`): it spends at most ``outlook_pace x
+   remaining x`` today's normal ET0 / the normal ET0 of the nominal season's days left, so that an allocation
+   follows the demand the site's climate normally brings. It then reads its fields' climates before the season
+   (``begin_season``; a real season's is ``site_climate``).
 
 All parameters may be arrays of shape (N,) to run N variants of the rule on N fields at once (the tuner's
 batched search). The tuned parameters of each task live in ``family_<task>.json`` beside this module,
@@ -67,6 +72,7 @@ class RuleParameters:
     stop_tt_fraction: float = 1.5
     pace: float = np.inf
     value_ratio: float = np.inf
+    outlook_pace: float = np.inf
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
@@ -157,6 +163,17 @@ class WaterBudgetRule(BasePolicy):
         self.facts = facts
         self.name = name
         self.soil_water = SoilWaterFilter(facts.capacity_mm)
+        self.outlook = None
+        if np.any(np.isfinite(self.parameters["outlook_pace"])):
+            from .outlook import ClimateOutlook
+            self.outlook = ClimateOutlook()
+        # the site's climate of seasons no generator made (the evaluation sets it for its real seasons)
+        self.site_climate: str | None = None
+
+    def begin_season(self, contexts) -> None:
+        """A rule that budgets by the climate's normal demand reads its fields' climates."""
+        if self.outlook is not None:
+            self.outlook.begin_season(contexts, self.site_climate)
 
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
@@ -176,6 +193,13 @@ class WaterBudgetRule(BasePolicy):
         days_left = np.maximum(obs[:, _COL["season_days_left"]], 1.0)
         budget = np.where(np.isinf(p["pace"]), np.inf, np.where(np.isinf(p["pace"]), 0.0, p["pace"]) * left / days_left)
         amount = np.minimum(amount, budget)
+        if self.outlook is not None:
+            if self.outlook.climates is None or len(self.outlook.climates) != len(obs):
+                self.outlook(obs)  # refuses with the reason: no climates told for these fields
+            from .outlook import normal_share_today
+            share = normal_share_today(self.outlook.climates, self.outlook.sowing_days, obs)
+            pace = np.where(np.isinf(p["outlook_pace"]), 0.0, p["outlook_pace"])
+            amount = np.where(np.isinf(p["outlook_pace"]), amount, np.minimum(amount, pace * left * share))
         too_dear = obs[:, _COL["water_cost_usd_per_mm"]] > p["value_ratio"] * obs[:, _COL["tuber_price_usd_per_t"]]
         amount = np.where(too_dear, 0.0, amount)
         return np.minimum(amount, obs[:, _COL["capacity_mm_per_day"]])

@@ -30,9 +30,12 @@ SEARCH_BOX = {
     "stop_tt_fraction": (0.5, 1.1),
     "pace": (0.3, 4.0),
     "value_ratio": (0.0, 0.05),
+    "outlook_pace": (0.3, 4.0),
 }
 NEVER = {"skip_rain_mm": 1e6, "start_tt_fraction": 0.0, "stop_tt_fraction": 10.0, "pace": np.inf,
-         "value_ratio": np.inf}
+         "value_ratio": np.inf, "outlook_pace": np.inf}
+# The parameters a rule is tuned over; ``--outlook`` adds the climatological budget (outlook_pace).
+PLAIN_NAMES = tuple(name for name in RuleParameters.names() if name != "outlook_pace")
 
 
 def training_seasons(scenario, first: int, last: int) -> np.ndarray:
@@ -52,8 +55,10 @@ def of_each_part(scenario, seasons: np.ndarray) -> np.ndarray:
     return np.concatenate([offset + np.asarray(seasons, dtype=np.int64) for offset in offsets[:-1]])
 
 
-def rule_file(task: str) -> Path:
-    return HERE / f"family_{task}.json"
+def rule_file(task: str, outlook: bool = False) -> Path:
+    """``family_<task>.json``, or with ``outlook`` the rule that also budgets by the climate's normal demand,
+    ``family_<task>-outlook.json``."""
+    return HERE / f"family_{task}{'-outlook' if outlook else ''}.json"
 
 
 def draw_terms(scenario, seasons: np.ndarray, seed: int) -> dict:
@@ -101,7 +106,7 @@ def _perturb(rng: np.random.Generator, best: list[dict], n: int, scale: float) -
 
 
 def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 192, rounds: int = 4,
-              names: tuple[str, ...] = RuleParameters.names(), log=print) -> dict:
+              names: tuple[str, ...] = PLAIN_NAMES, log=print) -> dict:
     """The best rule parameters on ``seasons`` of ``scenario`` (see the module docstring), with its score."""
     facts = FarmFacts.of_scenario(scenario)
     rng = np.random.default_rng(seed)
@@ -129,11 +134,13 @@ def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 19
             "facts": {"capacity_mm": facts.capacity_mm, "tsum_degc_d": facts.tsum_degc_d}}
 
 
-def tuned_rule(task: str, scenario=None) -> WaterBudgetRule:
-    """The rule tuned for ``task`` (FileNotFoundError says how to tune it)."""
-    path = rule_file(task)
+def tuned_rule(task: str, scenario=None, outlook: bool = False) -> WaterBudgetRule:
+    """The rule tuned for ``task`` (with ``outlook``: the one tuned with the climatological budget too);
+    FileNotFoundError says how to tune it."""
+    path = rule_file(task, outlook)
     if not path.exists():
-        raise FileNotFoundError(f"{path} is missing: run `crop-sim tune-rule --task {task}`")
+        raise FileNotFoundError(f"{path} is missing: run `crop-sim tune-rule --task {task}"
+                                f"{' --outlook' if outlook else ''}`")
     return rule_from_record(json.loads(path.read_text()))
 
 
@@ -154,8 +161,8 @@ def rule_from_record(record: dict) -> WaterBudgetRule:
     return WaterBudgetRule(FarmFacts(**record["facts"]), params, name="budget-rule")
 
 
-def write_tuned(task: str, result: dict) -> Path:
-    path = rule_file(task)
+def write_tuned(task: str, result: dict, outlook: bool = False) -> Path:
+    path = rule_file(task, outlook)
     plain = {**result, "parameters": _json_parameters(result["parameters"])}
     path.write_text(json.dumps(plain, indent=1) + "\n")
     return path
@@ -168,6 +175,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the search, the terms and the noise")
     parser.add_argument("--candidates", type=int, default=128, help="candidates per round (1..10000)")
     parser.add_argument("--rounds", type=int, default=4, help="local-search rounds after the random one (0..50)")
+    parser.add_argument("--outlook", action="store_true",
+                        help="also tune the budget by the climate's normal demand (outlook_pace: the knowledge of "
+                             "an agent's climate outlook); writes family_<task>-outlook.json")
 
 
 def run(args) -> int:
@@ -182,7 +192,9 @@ def run(args) -> int:
         seasons = of_each_part(scenario, season_range(str(args.seasons)))
     if not (1 <= args.candidates <= 10_000 and 0 <= args.rounds <= 50):
         raise UsageError("--candidates must be in 1..10000 and --rounds in 0..50")
-    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds)
+    outlook = bool(getattr(args, "outlook", False))
+    names = PLAIN_NAMES + (("outlook_pace",) if outlook else ())
+    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, names)
     print(f"tuned {args.task}: {result['parameters']} mean return {result['mean_return']:.2f}; "
-          f"wrote {write_tuned(args.task, result)}")
+          f"wrote {write_tuned(args.task, result, outlook)}")
     return 0

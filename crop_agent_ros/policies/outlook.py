@@ -40,6 +40,7 @@ BEHIND_DAYS = 14
 FEATURES = ("water_vs_demand", "demand_trend")
 _DAY = EXTENDED.index("days_since_sowing")
 _QUOTA = EXTENDED.index("quota_remaining_mm")
+_DAYS_LEFT = EXTENDED.index("season_days_left")
 
 
 @functools.lru_cache(maxsize=None)
@@ -102,6 +103,24 @@ def features(climates, sowing_days, obs: np.ndarray) -> np.ndarray:
         out[mine, 0] = np.log(quota[mine] / ahead)
         out[mine, 1] = 2.0 * np.log(ahead / (AHEAD_DAYS * behind))
     return out.astype(np.float32)
+
+
+def normal_share_today(climates, sowing_days, obs: np.ndarray) -> np.ndarray:
+    """(N,) today's normal ET0 / the normal ET0 of the days left of the nominal season (today included; the
+    observation's ``season_days_left``, at least 1): the share of the season's remaining demand that today
+    normally brings (the water-budget rule's climatological pace, ``outlook_pace``)."""
+    obs = np.atleast_2d(np.asarray(obs, dtype=float))
+    start = np.asarray(sowing_days, dtype=int) + obs[:, _DAY].astype(int)
+    days = np.maximum(obs[:, _DAYS_LEFT], 1.0).astype(int)
+    share = np.empty(len(obs))
+    climates = np.asarray(climates, dtype=object)
+    for climate in np.unique(climates):
+        mine = climates == climate
+        normals = normal_et0_mm(str(climate))
+        running = np.concatenate([[0.0], np.cumsum(np.tile(normals, 4))])  # up to four years ahead
+        first = start[mine] % 365
+        share[mine] = normals[first] / (running[first + days[mine]] - running[first])
+    return share
 
 
 class ClimateOutlook:
