@@ -164,7 +164,9 @@ def test_model_json_round_trips_the_rule_and_the_kind(residual_run):
     config = json.loads((out / "model.json").read_text())
     tuned = json.loads(rule_file(TASK).read_text())
     assert config["action_kind"] == "residual" and summary["action_kind"] == "residual"
-    assert config["rule"]["parameters"] == tuned["parameters"] and config["rule"]["facts"] == tuned["facts"]
+    # every tuned parameter, and the climatological budget the plain rule does not use (null: inf)
+    assert config["rule"]["parameters"] == {**tuned["parameters"], "outlook_pace": None}
+    assert config["rule"]["facts"] == tuned["facts"]
     assert config["rule"]["file"] == f"family_{TASK}.json"
     policy = LearnedPolicy(out / "model.zip")
     rule = tuned_rule(TASK)
@@ -194,7 +196,7 @@ def test_training_a_residual_without_the_tasks_tuned_rule_is_refused(tmp_path, m
     from crop_agent_ros.policies import family_tuning
     from crop_sim_ros.usage import UsageError
     missing = tmp_path / "family_benton-sensing.json"
-    monkeypatch.setattr(family_tuning, "rule_file", lambda task: missing)
+    monkeypatch.setattr(family_tuning, "rule_file", lambda task, outlook=False: missing)
     with pytest.raises(UsageError, match=r"--action residual corrects the task's tuned rule: .*family_benton-sensing"
                                          r"\.json is missing: run `crop-sim tune-rule --task benton-sensing`"):
         _train(tmp_path / "run")

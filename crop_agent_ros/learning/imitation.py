@@ -72,6 +72,8 @@ class _Recorder:
 
     def begin_season(self, contexts):
         self.mpc.begin_season(contexts)
+        if self.behaviour is not None:  # an agent with a climate outlook reads its fields' climates
+            self.behaviour.begin_season(contexts)
 
     def act(self, obs):
         label = np.asarray(self.mpc.act(obs), dtype=float)
