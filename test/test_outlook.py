@@ -25,7 +25,7 @@ def test_normals_are_the_generators_mean_year_and_a_warmed_climate_has_its_own()
     assert benton[170:200].mean() > 2.0 * benton[:30].mean()  # a Washington summer against its winter
     assert maricopa[150:180].mean() > benton[150:180].mean()  # the desert in June
     assert np.all(outlook.normal_et0_mm("benton+4C")[120:240] > benton[120:240])
-    for bad in ("atlantis", "benton+4", "benton*4C"):
+    for bad in ("atlantis", "benton+4", "benton*4C", "benton+xC"):
         with pytest.raises(ValueError, match="climate outlook: no climate"):
             outlook.normal_et0_mm(bad)
 

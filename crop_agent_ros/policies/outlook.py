@@ -21,7 +21,8 @@ validation, evaluation or continuation pool uses it). A climate is a fitted gene
 (``benton``, ``benton+4C``: the name its seasons' source carries). A generated season's climate is read from
 its source; a real season's (held-out Benton, Maricopa) is its site's generator, given by the evaluation set
 (for Maricopa's three real seasons, a generator whose fit includes those years: that set's outlook is not
-independent of it; the 50 generated Maricopa seasons are).
+independent of it; the 50 generated Maricopa seasons are). The water-budget rule's ``outlook_pace``
+(:mod:`crop_agent_ros.policies.family`) reads the same normals (:func:`normal_share_today`).
 """
 
 from __future__ import annotations
@@ -49,10 +50,14 @@ def normal_et0_mm(climate: str) -> np.ndarray:
     ``<generator><+warming>C``); ValueError naming the fitted generators for an unknown one."""
     from crop_sim_ros.weather.generator import GENERATOR_NAMES, generate_seasons, generator_parameters, warmed
     name, sign, warming = climate.partition("+") if "+" in climate else climate.partition("-")
-    if name not in GENERATOR_NAMES or (sign and not warming.endswith("C")):
+    try:
+        degc = float(sign + warming.removesuffix("C")) if sign and warming.endswith("C") else None
+    except ValueError:
+        degc = None
+    if name not in GENERATOR_NAMES or (sign and degc is None):
         raise ValueError(f"climate outlook: no climate {climate!r} (fitted generators: {', '.join(GENERATOR_NAMES)},"
                          " warmed as in benton+4C)")
-    params = warmed(generator_parameters(name), float(sign + warming[:-1]) if sign else 0.0)
+    params = warmed(generator_parameters(name), degc or 0.0)
     years = generate_seasons(params, datetime.date(2001, 1, 1), 730, NORMAL_YEARS, NORMALS_SEED)
     et0 = np.stack([series.et0_mm("penman_monteith") for series in years])
     normals = et0.reshape(NORMAL_YEARS, 2, 365).mean(axis=(0, 1))
