@@ -145,7 +145,8 @@ def test_the_tuner_searches_the_climatological_budget_only_when_asked():
     seasons = family_tuning.training_seasons(task, 0, 0)
     plain = family_tuning.tune_rule(task, seasons, candidates=3, rounds=0, log=lambda *_: None)
     assert "outlook_pace" not in plain["parameters"]
-    names = family_tuning.PLAIN_NAMES + ("outlook_pace",)
+    names = family_tuning.tuned_names(outlook=True)
+    assert names == family_tuning.tuned_names(outlook=False) + ("outlook_pace",)
     asked = family_tuning.tune_rule(task, seasons, candidates=6, rounds=0, names=names, log=lambda *_: None)
     assert "outlook_pace" in asked["parameters"]
     assert family_tuning.rule_file("x", outlook=True).name == "family_x-outlook.json"

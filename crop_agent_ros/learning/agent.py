@@ -195,7 +195,9 @@ class AgentInterface:
             paw_last = None if self.paw_filter is None else copy.deepcopy(self.paw_filter).update(last)
             # the outlook of a season that ended: its fields' climates before the training environment tells the
             # new seasons' (ended_outlook)
-            outlook_last = None if self.outlook is None else (self.outlook if ended_outlook is None else ended_outlook)(last)
+            outlook_last = None
+            if self.outlook is not None:
+                outlook_last = (self.outlook if ended_outlook is None else ended_outlook)(last)
             for i in rows:
                 repeated = np.tile(self.scaler(last[i])[0], self.history.k)[None, :]
                 terminal_inputs[i] = self.network_input(repeated, None if paw_last is None else paw_last[[i]],

@@ -313,9 +313,8 @@ def the_rule(task, args, log):
         f"({args.tune_candidates} candidates, {args.tune_rounds} rounds: as `crop-sim tune-rule --task {task.name} "
         f"--seasons 0..{args.tune_seasons - 1} --candidates {args.tune_candidates} --rounds {args.tune_rounds}"
         f"{' --outlook' if outlook else ''}`) and writing it")
-    names = family_tuning.PLAIN_NAMES + (("outlook_pace",) if outlook else ())
     result = family_tuning.tune_rule(task, seasons, seed=0, candidates=args.tune_candidates,
-                                     rounds=args.tune_rounds, names=names, log=log)
+                                     rounds=args.tune_rounds, names=family_tuning.tuned_names(outlook), log=log)
     family_tuning.write_tuned(task.name, result, outlook)
     return family_tuning.tuned_rule(task.name, outlook=outlook), {"file": str(path), "tuned_now": True,
                                                                   "tuned_on_seasons": seasons.tolist()}

@@ -194,12 +194,9 @@ class WaterBudgetRule(BasePolicy):
         budget = np.where(np.isinf(p["pace"]), np.inf, np.where(np.isinf(p["pace"]), 0.0, p["pace"]) * left / days_left)
         amount = np.minimum(amount, budget)
         if self.outlook is not None:
-            if self.outlook.climates is None or len(self.outlook.climates) != len(obs):
-                self.outlook(obs)  # refuses with the reason: no climates told for these fields
-            from .outlook import normal_share_today
-            share = normal_share_today(self.outlook.climates, self.outlook.sowing_days, obs)
             pace = np.where(np.isinf(p["outlook_pace"]), 0.0, p["outlook_pace"])
-            amount = np.where(np.isinf(p["outlook_pace"]), amount, np.minimum(amount, pace * left * share))
+            amount = np.where(np.isinf(p["outlook_pace"]), amount,
+                              np.minimum(amount, pace * left * self.outlook.share_today(obs)))
         too_dear = obs[:, _COL["water_cost_usd_per_mm"]] > p["value_ratio"] * obs[:, _COL["tuber_price_usd_per_t"]]
         amount = np.where(too_dear, 0.0, amount)
         return np.minimum(amount, obs[:, _COL["capacity_mm_per_day"]])

@@ -38,6 +38,11 @@ NEVER = {"skip_rain_mm": 1e6, "start_tt_fraction": 0.0, "stop_tt_fraction": 10.0
 PLAIN_NAMES = tuple(name for name in RuleParameters.names() if name != "outlook_pace")
 
 
+def tuned_names(outlook: bool) -> tuple[str, ...]:
+    """The parameters a rule is tuned over: with ``outlook``, the climatological budget too."""
+    return PLAIN_NAMES + (("outlook_pace",) if outlook else ())
+
+
 def training_seasons(scenario, first: int, last: int) -> np.ndarray:
     """Seasons FIRST..LAST of the training pool; for a mixture, FIRST..LAST of each part (so that every
     climate of the mixture is tuned on)."""
@@ -193,8 +198,7 @@ def run(args) -> int:
     if not (1 <= args.candidates <= 10_000 and 0 <= args.rounds <= 50):
         raise UsageError("--candidates must be in 1..10000 and --rounds in 0..50")
     outlook = bool(getattr(args, "outlook", False))
-    names = PLAIN_NAMES + (("outlook_pace",) if outlook else ())
-    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, names)
+    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, tuned_names(outlook))
     print(f"tuned {args.task}: {result['parameters']} mean return {result['mean_return']:.2f}; "
           f"wrote {write_tuned(args.task, result, outlook)}")
     return 0

@@ -91,18 +91,23 @@ def day_of_year(day: datetime.date | str) -> int:
     return min(date.timetuple().tm_yday - 1, 364)
 
 
+def _by_climate(climates, sowing_days, obs: np.ndarray):
+    """(observations as an (N, 29) float array, and for each climate among the fields: the fields' mask, the
+    climate's normals, and those fields' day of the year today)."""
+    obs = np.atleast_2d(np.asarray(obs, dtype=float))
+    today = np.asarray(sowing_days, dtype=int) + obs[:, _DAY].astype(int)
+    climates = np.asarray(climates, dtype=object)
+    return obs, [(climates == climate, normal_et0_mm(str(climate)), today[climates == climate])
+                 for climate in np.unique(climates)]
+
+
 def features(climates, sowing_days, obs: np.ndarray) -> np.ndarray:
     """(N, 2) :data:`FEATURES` of N fields: their climates and sowing days of the year, today's observations
     (days since sowing, quota left)."""
-    obs = np.atleast_2d(np.asarray(obs, dtype=float))
-    start = np.asarray(sowing_days, dtype=int) + obs[:, _DAY].astype(int)
+    obs, groups = _by_climate(climates, sowing_days, obs)
     quota = np.maximum(obs[:, _QUOTA], 1.0)
     out = np.empty((len(obs), 2))
-    climates = np.asarray(climates, dtype=object)
-    for climate in np.unique(climates):
-        mine = climates == climate
-        normals = normal_et0_mm(str(climate))
-        days = start[mine]
+    for mine, normals, days in groups:
         ahead = normals[(days[:, None] + np.arange(AHEAD_DAYS)) % 365].sum(axis=1)
         behind = normals[(days[:, None] - BEHIND_DAYS + np.arange(BEHIND_DAYS)) % 365].mean(axis=1)
         out[mine, 0] = np.log(quota[mine] / ahead)
@@ -114,17 +119,13 @@ def normal_share_today(climates, sowing_days, obs: np.ndarray) -> np.ndarray:
     """(N,) today's normal ET0 / the normal ET0 of the days left of the nominal season (today included; the
     observation's ``season_days_left``, at least 1): the share of the season's remaining demand that today
     normally brings (the water-budget rule's climatological pace, ``outlook_pace``)."""
-    obs = np.atleast_2d(np.asarray(obs, dtype=float))
-    start = np.asarray(sowing_days, dtype=int) + obs[:, _DAY].astype(int)
-    days = np.maximum(obs[:, _DAYS_LEFT], 1.0).astype(int)
+    obs, groups = _by_climate(climates, sowing_days, obs)
+    days_left = np.maximum(obs[:, _DAYS_LEFT], 1.0).astype(int)
     share = np.empty(len(obs))
-    climates = np.asarray(climates, dtype=object)
-    for climate in np.unique(climates):
-        mine = climates == climate
-        normals = normal_et0_mm(str(climate))
-        running = np.concatenate([[0.0], np.cumsum(np.tile(normals, 4))])  # up to four years ahead
-        first = start[mine] % 365
-        share[mine] = normals[first] / (running[first + days[mine]] - running[first])
+    for mine, normals, days in groups:
+        running = np.concatenate([[0.0], np.cumsum(np.tile(normals, 2))])  # a season is shorter than a year
+        first = days % 365
+        share[mine] = normals[first] / (running[first + days_left[mine]] - running[first])
     return share
 
 
@@ -157,10 +158,19 @@ class ClimateOutlook:
             climates.append(climate)
         self.set_fields(climates, [day_of_year(c.extra["sowing_date"]) for c in contexts])
 
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        if self.climates is None or len(self.climates) != len(np.atleast_2d(obs)):
+    def _checked(self, obs: np.ndarray) -> np.ndarray:
+        """``obs`` as (N, 29), or ValueError if this outlook was not told the climates of N fields."""
+        obs = np.atleast_2d(obs)
+        if self.climates is None or len(self.climates) != len(obs):
+            told = "was not" if self.climates is None else f"was told {len(self.climates)} fields, not {len(obs)}"
             raise ValueError("climate outlook: this agent reads its fields' climate; it is told it before the "
-                             "season (a policy run's begin_season, or the training environment), and "
-                             f"{'was not' if self.climates is None else f'was told {len(self.climates)} fields, not'}"
-                             f"{'' if self.climates is None else ' ' + str(len(np.atleast_2d(obs)))}")
-        return features(self.climates, self.sowing_days, obs)
+                             f"season (a policy run's begin_season, or the training environment), and {told}")
+        return obs
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """The fields' :func:`features` today."""
+        return features(self.climates, self.sowing_days, self._checked(obs))
+
+    def share_today(self, obs: np.ndarray) -> np.ndarray:
+        """The fields' :func:`normal_share_today`."""
+        return normal_share_today(self.climates, self.sowing_days, self._checked(obs))
