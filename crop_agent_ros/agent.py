@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from datetime import date
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 from rclpy.node import Node
@@ -42,6 +43,11 @@ PARAMETERS = {
                                        "policy agent: a family agent's model.zip (model.json beside it), required")),
     "task": ("", _descriptor(S, "policy budget-rule: the family task whose tuned rule to use, e.g. benton-quota ('' "
                                 "= the simulator's scenario parameter, read at start)")),
+    "climate": ("", _descriptor(S, "policy agent with a climate outlook: the field's climate (a fitted weather "
+                                   "generator: benton, gainesville, maricopa; warmed as benton+4C) for seasons no "
+                                   "generator made; reacting, for every season ('' = drive: the season's generator)")),
+    "sowing_date": ("", _descriptor(S, "policy agent with a climate outlook, reacting: the field's sowing date, "
+                                       "YYYY-MM-DD (drive: each reset's)")),
     "constant_mm": (10.0, _descriptor(D, "policy constant: irrigation per day, mm", 0.0, 100.0)),
     "drive": (False, _descriptor(B, "run the seasons itself (reset, command, step ...) and exit")),
     "seasons": (1, _descriptor(I, "drive: number of seasons", 1, 100000)),
@@ -51,10 +57,12 @@ PARAMETERS = {
 }
 
 
-def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.0, task: str = ""):
+def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.0, task: str = "",
+                      climate: str = ""):
     """The policy named ``kind``: from :mod:`crop_agent_ros.policies`, ``budget-rule`` (the water-budget rule
-    tuned for the family task ``task``) or ``agent`` (a family agent's policy file). ValueError for an unknown
-    name or a missing parameter, FileNotFoundError for a missing policy or rule file."""
+    tuned for the family task ``task``) or ``agent`` (a family agent's policy file; ``climate``: the site's, for
+    an agent with a climate outlook). ValueError for an unknown name or a missing parameter,
+    FileNotFoundError for a missing policy or rule file."""
     from .policies import ConstantPolicy, make_policy  # noqa: PLC0415
 
     if kind not in NODE_POLICIES:
@@ -71,10 +79,10 @@ def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.
             raise ValueError("policy agent needs policy_file:=<model.zip of a family agent>")
         from .learning.agent import LearnedPolicy  # noqa: PLC0415
         agent = LearnedPolicy(policy_file)
-        if agent.interface.outlook is not None:
-            # its input needs the field's climate and sowing date, which no topic or parameter carries yet
-            raise ValueError(f"{policy_file}: this agent reads a climate outlook (crop-sim train --outlook); the ROS "
-                             "nodes do not carry the field's climate yet: run it with crop-sim evaluate")
+        if climate:
+            from .policies.outlook import normal_et0_mm  # noqa: PLC0415
+            normal_et0_mm(climate)  # an unknown climate is refused at start, by name
+            agent.site_climate = climate
         return agent
     return make_policy(kind)
 
@@ -103,7 +111,18 @@ class AgentNode(Node):
         self._client: SimClient | None = None
         # budget-rule without a task: the simulator's scenario names it (built in start(), once it is read)
         self.policy = (None if p["policy"] == "budget-rule" and not p["task"].strip()
-                       else make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"], p["task"].strip()))
+                       else make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"], p["task"].strip(),
+                                              p["climate"].strip()))
+        if getattr(self.policy, "outlook", None) is not None and not self.drive_mode:
+            # reacting, it sees observations only: the field's climate and sowing date are its parameters
+            if not p["climate"].strip() or not p["sowing_date"].strip():
+                raise ValueError(f"{p['policy_file']}: this agent reads a climate outlook; reacting to observations it "
+                                 "needs the field's climate:=<generator> and sowing_date:=YYYY-MM-DD (or drive:=true)")
+            try:
+                sowing_date = date.fromisoformat(p["sowing_date"].strip())
+            except ValueError:
+                raise ValueError(f"sowing_date {p['sowing_date']!r} is not a date YYYY-MM-DD") from None
+            self.policy.begin_field_season("", sowing_date)  # every season of this node (no source: climate:=)
         self.commands_sent = 0
         policy = repr(self.policy) if self.policy is not None else "budget-rule (of the simulator's scenario)"
         self.get_logger().info(f"policy {policy}, simulator {self.sim}, "
@@ -184,6 +203,8 @@ class AgentNode(Node):
                 obs, info = client.reset(seed=None, weather_season=UNCHANGED)  # continue the stream
             check_observation_size(self.policy, obs.size, f"the observation of {self.sim}")  # a scenario change
             self.policy.reset(None if seed < 0 else seed + k)
+            if getattr(self.policy, "outlook", None) is not None:  # its fields' climate, from the season's weather
+                self.policy.begin_field_season(info["weather_source"], info["date"])
             water = 0.0
             total = 0.0
             days = 0

@@ -26,7 +26,8 @@ Policies (parameter ``policy``, built by :func:`crop_agent_ros.agent.make_agent_
 family (a simulator with a family scenario, 29-value observations): ``budget-rule`` (the water-budget rule
 tuned for the family task named by ``task``; by default the simulator's ``scenario``, read at start) and
 ``agent`` (a family agent trained with ``crop-sim train --task``: ``policy_file:=.../model.zip``, its
-``model.json`` beside it). The paper's policies read either observation; the family's read only 29 values:
+``model.json`` beside it; one with a climate outlook reads its field's climate and sowing date from each
+reset when driving, from its ``climate`` and ``sowing_date`` parameters when reacting). The paper's policies read either observation; the family's read only 29 values:
 one that cannot read the simulator's observation is refused at start (drive mode, or a policy that reads the
 simulator's scenario), else at the first observation, with one line and exit status 2.
 

@@ -106,10 +106,20 @@ def test_an_outlook_agent_trains_from_files_and_reads_its_climates_in_an_evaluat
     result = run_unit(Unit(0, "agent", 0, 0, len(real.seasons)), real, terms, agent)
     assert result.returns.shape == (len(real.seasons),) and np.all(np.isfinite(result.returns))
     assert agent.interface.outlook.climates == ["maricopa"] * len(real.seasons)
-    # the ROS nodes cannot tell it its climate yet: refused when the node loads it, not on its first step
+    # the agent node's policy: its climate parameter is the site climate; an unknown one is refused at load
     from crop_agent_ros.agent import make_agent_policy
-    with pytest.raises(ValueError, match="reads a climate outlook .* the ROS nodes do not carry"):
-        make_agent_policy("agent", policy_file=str(out / "model.zip"))
+    node_policy = make_agent_policy("agent", policy_file=str(out / "model.zip"), climate="maricopa")
+    assert node_policy.site_climate == "maricopa" and node_policy.outlook is not None
+    with pytest.raises(ValueError, match="no climate 'mars'"):
+        make_agent_policy("agent", policy_file=str(out / "model.zip"), climate="mars")
+    # one field's season, as a simulator's reset gives it: the generator of its weather, else the site climate
+    node_policy.begin_field_season("generator(gainesville, seed=0, season=3)", "2001-01-15")
+    assert node_policy.outlook.climates == ["gainesville"] and list(node_policy.outlook.sowing_days) == [14]
+    node_policy.begin_field_season("simple_r_inputs/Weather/AZ000701.WTH", "2008-01-15")
+    assert node_policy.outlook.climates == ["maricopa"]
+    node_policy.site_climate = None
+    with pytest.raises(ValueError, match="was not generated and no site climate was given"):
+        node_policy.begin_field_season("simple_r_inputs/Weather/AZ000701.WTH", "2008-01-15")
 
 
 def test_todays_share_of_the_normal_demand_left_and_the_rule_that_budgets_by_it():

@@ -258,7 +258,9 @@ def drive(tmp_path, sim_name: str, label: str, *params: str) -> tuple[int, str]:
 def offline_season(policy, scenario: str, seed: int) -> dict:
     env = IrrigationEnv(scenario)
     policy.reset(seed)
-    obs, _ = env.reset(seed=seed)
+    obs, info = env.reset(seed=seed)
+    if getattr(policy, "outlook", None) is not None:  # an agent with a climate outlook: its field's season
+        policy.begin_field_season(info["weather_source"], info["date"])
     total, water, days, done = 0.0, 0.0, 0, False
     while not done:
         obs, reward, terminated, truncated, info = env.step(policy.act(obs))
@@ -318,6 +320,89 @@ def test_learned_agent_drives_a_family_season_like_offline(tmp_path, quota_sim, 
     summary = season_summary(output)
     expected = offline_season(LearnedPolicy(family_agent_file), "benton-quota", 8)
     assert summary["policy"] == "agent" and {k: summary[k] for k in expected} == expected
+
+
+@pytest.fixture(scope="module")
+def outlook_agent_file(tmp_path_factory, family_agent_file):
+    """The same untrained agent with a climate outlook (two more inputs)."""
+    from crop_agent_ros.policies.outlook import ClimateOutlook
+
+    path = ppo_file(tmp_path_factory.mktemp("outlook") / "model.zip", (EXTENDED.size + 2,))
+    config = json.loads(family_agent_file.with_suffix(".json").read_text()) | {"outlook": ClimateOutlook().record()}
+    path.with_suffix(".json").write_text(json.dumps(config))
+    return path
+
+
+def test_outlook_agent_drives_a_family_season_like_offline(tmp_path, quota_sim, outlook_agent_file):
+    """Driving, the agent reads its field's climate and sowing date from each reset (the season's generator)."""
+    from crop_agent_ros.learning.agent import LearnedPolicy
+
+    name, _ = quota_sim
+    status, output = drive(tmp_path, name, "agent_outlook", "-p", "policy:=agent", "-p",
+                           f"policy_file:={outlook_agent_file}", "-p", "seed:=8")
+    assert status == 0, output
+    summary = season_summary(output)
+    offline = LearnedPolicy(outlook_agent_file)
+    expected = offline_season(offline, "benton-quota", 8)
+    assert offline.outlook.climates == ["benton"] and list(offline.outlook.sowing_days) == [91]  # 2000-04-01
+    assert summary["policy"] == "agent" and {k: summary[k] for k in expected} == expected
+
+
+def test_reacting_outlook_agent_reads_its_climate_and_sowing_date_from_parameters(tmp_path, quota_sim,
+                                                                                    outlook_agent_file):
+    """Reacting, the agent sees observations only: the field's climate and sowing date are its parameters; its
+    commands are the offline agent's, day by day. Without them, or with an unknown climate: one line, exit 2."""
+    from datetime import date
+
+    from crop_agent_ros.learning.agent import LearnedPolicy
+
+    name, _ = quota_sim
+    policy = ("-p", "policy:=agent", "-p", f"policy_file:={outlook_agent_file}")
+    for label, params, message in (
+            ("missing", (), "needs the field's climate:=<generator> and sowing_date:=YYYY-MM-DD"),
+            ("unknown", ("-p", "climate:=mars", "-p", "sowing_date:=2000-04-01"), "no climate 'mars'"),
+            ("baddate", ("-p", "climate:=benton", "-p", "sowing_date:=April"), "sowing_date 'April' is not a date")):
+        agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name=f"reacting_{label}",
+                            log_path=tmp_path / f"reacting_{label}.out",
+                            ros_args=["-p", f"sim_node:={name}", *policy, *params])
+        try:
+            status = agent.wait(300)
+        finally:
+            agent.stop()
+        output = agent.output()
+        assert status == 2 and "Traceback" not in output and message in one_error_line(output), (status, output)
+
+    offline = LearnedPolicy(outlook_agent_file)
+    offline.site_climate = "benton"
+    offline.begin_field_season("", date(2000, 4, 1))
+    env = IrrigationEnv("benton-quota")
+    offline.reset(None)
+    obs, _ = env.reset(seed=8)
+    requested, expected = [], []
+    for _ in range(8):
+        requested.append(offline.act(obs))
+        obs, _, _, _, info = env.step(requested[-1])
+        expected.append(info["irrigation_applied_mm"])
+    agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name="reacting_outlook",
+                        log_path=tmp_path / "reacting_outlook.out",
+                        ros_args=["-p", f"sim_node:={name}", *policy, "-p", "climate:=benton",
+                                  "-p", "sowing_date:=2000-04-01"])
+    try:
+        with PrivateRos("outlook_stepper") as ros:
+            statuses = []
+            ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
+                                         lambda m: statuses.append(ri.status_values(m)), ri.READER_QOS)
+            client = ros_support.connect(ros, name)
+            client.reset(seed=8)
+            applied = []
+            for day in range(8):  # (a status of the previous season's day may still arrive: match the amount)
+                ros.spin_until(lambda: any(s["accepted"] and s["day"] == day and s["irrigation_mm"] == requested[day]
+                                           for s in statuses), 30, f"the agent's command of {requested[day]} mm "
+                               f"for day {day} (another amount: its outlook differs)")
+                applied.append(ros_support.raw_step(ros, name)["irrigation_mm"])
+        assert applied == expected and any(applied), (applied, agent.output())
+    finally:
+        assert agent.stop() == 0, agent.output()
 
 
 def one_error_line(output: str) -> str:

@@ -41,6 +41,7 @@ import numpy as np
 from crop_sim_ros.task.layout import EXTENDED
 
 from ..policies.base import BasePolicy
+from ..policies.outlook import ClimateOutlook, ReadsOutlook
 
 ACTION_SCALE_MM = 25.0  # a = 1 asks 25 mm: above any day's need (ET0 <= ~11 mm/d), below drainage waste
 # The residual's reach: a in [-1, 1] corrects the rule by up to 10 mm either way, enough to cancel any day's
@@ -218,7 +219,7 @@ class AgentInterface:
         return residual_to_mm(action, self._rule_mm)
 
 
-class LearnedPolicy(BasePolicy):
+class LearnedPolicy(ReadsOutlook, BasePolicy):
     """A family agent's policy file (``.zip`` + ``.json`` beside it) as a policy; deterministic actions."""
 
     observation_sizes = (EXTENDED.size,)
@@ -253,7 +254,6 @@ class LearnedPolicy(BasePolicy):
                 raise ValueError(f"{config_file}: paw_filter {self.config['paw_filter']!r}: {error}") from None
         outlook = None
         if self.config.get("outlook") is not None:
-            from ..policies.outlook import ClimateOutlook
             outlook = ClimateOutlook()
             if self.config["outlook"] != outlook.record():
                 raise ValueError(f"{config_file}: outlook {self.config['outlook']!r} is not this version's "
@@ -261,8 +261,6 @@ class LearnedPolicy(BasePolicy):
         scaler = ObservationScaler(tuple(self.config["scaler"]["mean"]), tuple(self.config["scaler"]["std"]))
         self.interface = AgentInterface(scaler, self.config.get("history", 1), action_kind, rule, paw_filter,
                                         outlook)
-        # the site's climate of seasons no generator made (the evaluation sets it for its real seasons)
-        self.site_climate: str | None = None
         if self.algorithm == "ppo":
             from stable_baselines3 import PPO
             self.model = PPO.load(str(self.path), device="cpu")
@@ -285,10 +283,10 @@ class LearnedPolicy(BasePolicy):
         self.interface.reset()
         self._lstm = None
 
-    def begin_season(self, contexts) -> None:
-        """An agent with a climate outlook reads its fields' climates (:class:`~.outlook.ClimateOutlook`)."""
-        if self.interface.outlook is not None:
-            self.interface.outlook.begin_season(contexts, self.site_climate)
+    @property
+    def outlook(self):
+        """The climate outlook the network reads (:class:`~.outlook.ClimateOutlook`), or None."""
+        return self.interface.outlook
 
     def _act_batch(self, obs):
         inputs, _ = self.interface.observe(obs)

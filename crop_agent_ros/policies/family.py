@@ -42,6 +42,7 @@ import numpy as np
 from crop_sim_ros.task.layout import EXTENDED
 
 from .base import BasePolicy
+from .outlook import ClimateOutlook, ReadsOutlook
 
 UPTAKE_PER_DAY = 0.096  # ARID's water uptake coefficient, d-1 (crop_sim_ros.model.simple)
 _COL = {name: EXTENDED.index(name) for name in EXTENDED.names}
@@ -146,7 +147,7 @@ class SoilWaterFilter:
         return estimate
 
 
-class WaterBudgetRule(BasePolicy):
+class WaterBudgetRule(ReadsOutlook, BasePolicy):
     """The family's rule (see the module docstring). ``parameters``: a :class:`RuleParameters`, or a mapping
     of its fields to values or (N,) arrays."""
 
@@ -165,15 +166,7 @@ class WaterBudgetRule(BasePolicy):
         self.soil_water = SoilWaterFilter(facts.capacity_mm)
         self.outlook = None
         if np.any(np.isfinite(self.parameters["outlook_pace"])):
-            from .outlook import ClimateOutlook
             self.outlook = ClimateOutlook()
-        # the site's climate of seasons no generator made (the evaluation sets it for its real seasons)
-        self.site_climate: str | None = None
-
-    def begin_season(self, contexts) -> None:
-        """A rule that budgets by the climate's normal demand reads its fields' climates."""
-        if self.outlook is not None:
-            self.outlook.begin_season(contexts, self.site_climate)
 
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)

@@ -71,6 +71,16 @@ def climate_of_source(source: str) -> str | None:
     return generator_of_source(source)
 
 
+def season_climate(source: str, fallback: str | None, season: str) -> str:
+    """The climate of a season whose weather came from ``source``: the generator that made it, else
+    ``fallback`` (the site's climate of a real season); ValueError naming ``season`` if neither."""
+    climate = climate_of_source(source) or fallback
+    if climate is None:
+        raise ValueError(f"climate outlook: season {season} ({source}) was not generated and no site climate was "
+                         "given for it")
+    return climate
+
+
 def scenario_climate(scenario) -> str:
     """The climate of a generated-weather scenario (its generator, warmed as it says)."""
     warming = float(scenario.weather.warming_degc)
@@ -149,14 +159,8 @@ class ClimateOutlook:
         self.climates, self.sowing_days = list(climates), np.asarray(sowing_days, dtype=int)
 
     def begin_season(self, contexts, fallback: str | None = None) -> None:
-        climates = []
-        for context in contexts:
-            climate = climate_of_source(str(context.extra.get("source", ""))) or fallback
-            if climate is None:
-                raise ValueError(f"climate outlook: season {context.name} ({context.extra.get('source')}) was not "
-                                 "generated and no site climate was given for it")
-            climates.append(climate)
-        self.set_fields(climates, [day_of_year(c.extra["sowing_date"]) for c in contexts])
+        self.set_fields([season_climate(str(c.extra.get("source", "")), fallback, c.name) for c in contexts],
+                        [day_of_year(c.extra["sowing_date"]) for c in contexts])
 
     def _checked(self, obs: np.ndarray) -> np.ndarray:
         """``obs`` as (N, 29), or ValueError if this outlook was not told the climates of N fields."""
@@ -174,3 +178,22 @@ class ClimateOutlook:
     def share_today(self, obs: np.ndarray) -> np.ndarray:
         """The fields' :func:`normal_share_today`."""
         return normal_share_today(self.climates, self.sowing_days, self._checked(obs))
+
+
+class ReadsOutlook:
+    """A policy that may read a :class:`ClimateOutlook` (``self.outlook``, None: it does not): told its fields'
+    climates before each season. ``site_climate`` is the climate of seasons no generator made (the
+    evaluation sets it for its real seasons; the agent node from its ``climate`` parameter)."""
+
+    outlook: ClimateOutlook | None = None
+    site_climate: str | None = None
+
+    def begin_season(self, contexts) -> None:
+        if self.outlook is not None:
+            self.outlook.begin_season(contexts, self.site_climate)
+
+    def begin_field_season(self, weather_source: str, sowing_date: datetime.date | str) -> None:
+        """One field's season (a simulator's reset: its weather source and sowing date)."""
+        if self.outlook is not None:
+            self.outlook.set_fields([season_climate(weather_source, self.site_climate, str(sowing_date))],
+                                    [day_of_year(sowing_date)])
