@@ -38,7 +38,7 @@ setup(
         "console_scripts": [
             "crop-sim = crop_agent_ros.cli:main",
             "sim_node = crop_sim_ros.sim_node:main",
-            "agent_node = crop_agent_ros.agent_node:main",
+            "agent_node = crop_agent_ros.ros.agent_node:main",
         ],
     },
 )

@@ -18,20 +18,20 @@ from crop_sim_ros.usage import EXIT_USAGE, UsageError
 
 # command -> (module, one-line help)
 COMMANDS = {
-    "farm": ("crop_agent_ros.run_farm", "the main job: sim node + agent node grow a season over ROS 2"),
+    "farm": ("crop_agent_ros.ros.farm", "the main job: sim node + agent node grow a season over ROS 2"),
     "simulate": ("crop_sim_ros.simulate", "grow one season on a scenario and summarise it (with a plot)"),
     "validate": ("crop_sim_ros.validation.cli", "run the SIMPLE reference experiments and report RRMSE"),
     "fit-weather": ("crop_sim_ros.weather.fit", "fit the weather generator's parameters to observed files"),
     "bench": ("crop_sim_ros.bench", "benchmark the model and the environment (field-days per second)"),
-    "train": ("crop_agent_ros.train", "train a PPO irrigation policy (Stable-Baselines3)"),
-    "evaluate": ("crop_agent_ros.evaluate", "evaluate policies on held-out seasons"),
+    "train": ("crop_agent_ros.learning.train", "train a PPO irrigation policy (Stable-Baselines3)"),
+    "evaluate": ("crop_agent_ros.learning.evaluate", "evaluate policies on held-out seasons"),
     "tune-rule": ("crop_agent_ros.policies.family_tuning",
                   "tune a family task's water-budget rule on generated training seasons"),
     "demonstrate": ("crop_agent_ros.learning.imitation",
                     "record the causal MPC's irrigation on a family task's training seasons (for --imitate)"),
     "sweep": ("crop_agent_ros.scale.sweep", "training and evaluation sweeps on Ray Tune (local or a cluster)"),
     "sweep-bench": ("crop_agent_ros.scale.bench", "benchmark sweep trials per hour with 1 and with 2 CPUs"),
-    "ros-bench": ("crop_agent_ros.ros_bench", "benchmark days per second through ROS 2 against bare rclpy"),
+    "ros-bench": ("crop_agent_ros.ros.bench", "benchmark days per second through ROS 2 against bare rclpy"),
 }
 
 

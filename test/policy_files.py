@@ -39,7 +39,7 @@ def tiny_task_training(out: Path, task: str, seed: int, *extra: str, timesteps: 
     """``crop-sim train --task`` with a tiny budget (``extra``: more arguments, e.g. ``--action residual``):
     the training run's summary; its files go to ``out``."""
     import argparse
-    from crop_agent_ros import train
+    from crop_agent_ros.learning import train
     from crop_agent_ros.learning.train_task import train_task
     parser = argparse.ArgumentParser()
     train.add_arguments(parser)

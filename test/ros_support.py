@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from crop_agent_ros.ros_process import NodeProcess, isolated_ros_env, pick_domain_id
+from crop_agent_ros.ros.process import NodeProcess, isolated_ros_env, pick_domain_id
 
 os.environ["ROS_DOMAIN_ID"] = str(pick_domain_id(salt=int(os.environ.get("PYTEST_XDIST_WORKER", "gw0")[2:] or 0)))
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -30,8 +30,8 @@ from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from crop_agent_ros.ros_client import PrivateRos, call, wait_for_service  # noqa: E402
-from crop_agent_ros.sim_client import SimClient  # noqa: E402
+from crop_agent_ros.ros.spin import PrivateRos, call, wait_for_service  # noqa: E402
+from crop_agent_ros.ros.sim_client import SimClient  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent

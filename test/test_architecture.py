@@ -40,3 +40,28 @@ def test_command_line_help_does_not_load_torch_or_rclpy():
             "print(' '.join(sorted({n.split('.')[0] for n in sys.modules})))")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
     assert not set(result.stdout.split()) & {"torch", "rclpy", "stable_baselines3"}
+
+
+ROS_MODULES = ("rclpy", "std_msgs", "std_srvs", "diagnostic_msgs", "rosgraph_msgs", "rcl_interfaces", "builtin_interfaces")
+
+
+def test_only_the_ros_subpackage_imports_ros():
+    """crop_agent_ros/ros/ holds everything that imports rclpy; policies/, learning/ and scale/ never import it
+    (cli.py names its jobs' modules as strings and imports the one asked for)."""
+    offenders = []
+    for path in (ROOT / "crop_agent_ros").rglob("*.py"):
+        if path.parent.name == "ros":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                names = [("." * node.level) + base] + ([f"{'.' * node.level}{a.name}" for a in node.names]
+                                                       if not base else [])
+            else:
+                continue
+            offenders += [f"{path.relative_to(ROOT)}: {n}" for n in names
+                          if n.split(".")[0] in ROS_MODULES or n.startswith("crop_agent_ros.ros")
+                          or n.lstrip(".").split(".")[0] == "ros"]
+    assert not offenders

@@ -41,7 +41,7 @@ def rule_dir(tmp_path_factory):
 @pytest.fixture(scope="module")
 def trained_run(tmp_path_factory) -> Path:
     """One PPO run of the quota task, 2,048 steps, with its 1 % checkpoint and intermediate checkpoints."""
-    from crop_agent_ros import train
+    from crop_agent_ros.learning import train
     from crop_agent_ros.learning.train_task import train_task
     out = tmp_path_factory.mktemp("runs") / f"{TASK}-ppo-s0"
     parser = argparse.ArgumentParser()

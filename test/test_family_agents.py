@@ -89,7 +89,7 @@ def test_a_policy_file_with_other_spaces_is_refused_at_load(tmp_path):
 
 
 def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_path):
-    from crop_agent_ros import train
+    from crop_agent_ros.learning import train
     from crop_agent_ros.learning.train_task import train_task
     parser = argparse.ArgumentParser()
     train.add_arguments(parser)

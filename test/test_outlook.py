@@ -107,7 +107,7 @@ def test_an_outlook_agent_trains_from_files_and_reads_its_climates_in_an_evaluat
     assert result.returns.shape == (len(real.seasons),) and np.all(np.isfinite(result.returns))
     assert agent.interface.outlook.climates == ["maricopa"] * len(real.seasons)
     # the agent node's policy: its climate parameter is the site climate; an unknown one is refused at load
-    from crop_agent_ros.agent import make_agent_policy
+    from crop_agent_ros.ros.agent import make_agent_policy
     node_policy = make_agent_policy("agent", policy_file=str(out / "model.zip"), climate="maricopa")
     assert node_policy.site_climate == "maricopa" and node_policy.outlook is not None
     with pytest.raises(ValueError, match="no climate 'mars'"):

@@ -237,13 +237,13 @@ def test_features_are_finite_and_bounded():
 # --- evaluation ----------------------------------------------------------------------------------------
 
 def test_parse_seeds():
-    from crop_agent_ros.evaluate import parse_seeds
+    from crop_agent_ros.learning.evaluate import parse_seeds
     assert parse_seeds("0..3") == [0, 1, 2, 3]
     assert parse_seeds("4,7") == [4, 7]
 
 
 def test_evaluate_table_on_a_tiny_run(tmp_path):
-    from crop_agent_ros.evaluate import evaluate, format_table, paired_difference, summarize
+    from crop_agent_ros.learning.evaluate import evaluate, format_table, paired_difference, summarize
     rows, episodes, oracle_results, contexts = evaluate(["zero", "constant10", "oracle"], "benton-2000", [0, 1],
                                                         record=True)
     assert len(rows) == 3 * 2 * 1

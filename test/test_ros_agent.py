@@ -1,7 +1,7 @@
 """The agent node over ROS 2: reacting to the simulator's observations (someone else steps), driving
 seasons, stopping cleanly on SIGTERM or SIGINT whenever they land, refusing a policy file made for other
 spaces, honouring its timeout, leaving the simulator's parameters alone; and the README's main job
-(``python -m crop_agent_ros.run_farm``: sim + agent processes grow a season)."""
+(``python -m crop_agent_ros.ros.farm``: sim + agent processes grow a season)."""
 
 from __future__ import annotations
 
@@ -22,8 +22,8 @@ from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rcl_interfaces.srv import GetParameters  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from crop_agent_ros.ros_client import PrivateRos, call, wait_for_service  # noqa: E402
-from crop_agent_ros.ros_process import NodeProcess, isolated_ros_env  # noqa: E402
+from crop_agent_ros.ros.spin import PrivateRos, call, wait_for_service  # noqa: E402
+from crop_agent_ros.ros.process import NodeProcess, isolated_ros_env  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
 from policy_files import ppo_file  # noqa: E402
 
@@ -41,7 +41,7 @@ def test_reactive_agent_commands_every_day(tmp_path):
             step = ros.node.create_client(Trigger, f"{name}/step")
             wait_for_service(ros.executor, step, 30)
             ros.spin_until(lambda: status.get_publisher_count() >= 1, 30, "the status topic")
-            agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name="agent_node",
+            agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="agent_node",
                                 log_path=tmp_path / "agent.out",
                                 ros_args=["-p", f"sim_node:={name}", "-p", "policy:=constant", "-p", "constant_mm:=7.5"])
             for day in range(10):  # the agent commands each day as soon as it sees the day's observation
@@ -60,7 +60,7 @@ def test_reactive_agent_commands_every_day(tmp_path):
 @pytest.mark.parametrize("policy", ["refill", "ppo"])
 def test_run_farm_grows_a_season_over_ros(tmp_path, policy):
     log = tmp_path / "season.csv"
-    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.run_farm", "--policy", policy, "--json",
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--policy", policy, "--json",
                            "--log", str(log), "--domain-id", str(isolated_ros_env()["ROS_DOMAIN_ID"])],
                           env=isolated_ros_env(), capture_output=True, text=True, timeout=300,
                           cwd=ros_support.REPO)
@@ -79,7 +79,7 @@ def test_run_farm_grows_a_family_season_with_a_committed_agent(tmp_path):
     from the readings it receives (a missing one as NaN), and the season stays within the farm's quota."""
     log = tmp_path / "season.csv"
     agent = ros_support.REPO / "results/family/agents/benton-sensing-imitation-expected-filter-dagger2-s0/model.zip"
-    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.run_farm", "--policy", "agent", "--policy-file",
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--policy", "agent", "--policy-file",
                            str(agent), "--scenario", "benton-sensing", "--json", "--no-plot", "--log", str(log),
                            "--domain-id", str(isolated_ros_env()["ROS_DOMAIN_ID"])],
                           env=isolated_ros_env(), capture_output=True, text=True, timeout=300, cwd=ros_support.REPO)
@@ -99,7 +99,7 @@ def test_run_farm_grows_a_season_with_a_committed_outlook_agent(tmp_path):
     from crop_sim_ros.task import IrrigationEnv
 
     agent = ros_support.REPO / "results/family/agents/climates3-quota-imitation-outlook-dagger-s0/model.zip"
-    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.run_farm", "--policy", "agent", "--policy-file",
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--policy", "agent", "--policy-file",
                            str(agent), "--scenario", "climates3-quota", "--json", "--no-plot",
                            "--domain-id", str(isolated_ros_env()["ROS_DOMAIN_ID"])],
                           env=isolated_ros_env(), capture_output=True, text=True, timeout=300, cwd=ros_support.REPO)
@@ -136,7 +136,7 @@ def catches_sigterm(pid: int) -> bool:
 
 def start_driving_agent(tmp_path, sim_name: str, name: str, policy: str = "refill", seasons: int = 1000,
                         extra: tuple[str, ...] = ()) -> NodeProcess:
-    return NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name=name,
+    return NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name=name,
                        log_path=tmp_path / f"{name}.out",
                        ros_args=["-p", f"sim_node:={sim_name}", "-p", f"policy:={policy}", "-p", "drive:=true",
                                  "-p", f"seasons:={seasons}", "-p", "timeout:=30.0", *extra])
@@ -233,7 +233,7 @@ def test_agent_without_a_simulator_gives_up_after_its_timeout(tmp_path):
 
 
 def test_agent_help_prints_usage_and_starts_no_node():
-    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.agent_node", "--help"], capture_output=True,
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.agent_node", "--help"], capture_output=True,
                           text=True, timeout=120, env=isolated_ros_env(), cwd=ros_support.REPO)
     assert done.returncode == 0 and done.stderr == "", done.stderr
     assert done.stdout.splitlines()[2] == "usage: agent_node [--help] [--ros-args -p NAME:=VALUE ...]"
@@ -248,7 +248,7 @@ def wrong_shape_policy(tmp_path_factory):
 
 
 def test_agent_refuses_a_policy_of_other_spaces_at_load(tmp_path, wrong_shape_policy):
-    agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name="agent_policy",
+    agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="agent_policy",
                         log_path=tmp_path / "agent.out",
                         ros_args=["-p", "policy:=ppo", "-p", f"policy_file:={wrong_shape_policy}", "-p", "drive:=true"])
     status = agent.wait(120)
@@ -258,7 +258,7 @@ def test_agent_refuses_a_policy_of_other_spaces_at_load(tmp_path, wrong_shape_po
 
 
 def test_farm_refuses_a_policy_of_other_spaces_in_one_line(tmp_path, wrong_shape_policy):
-    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.run_farm", "--policy-file", str(wrong_shape_policy),
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--policy-file", str(wrong_shape_policy),
                            "--log", str(tmp_path / "season.csv")], env=isolated_ros_env(), capture_output=True,
                           text=True, timeout=300, cwd=ros_support.REPO)
     (line,) = done.stderr.splitlines()
@@ -289,7 +289,7 @@ def processes_tagged(tag: str) -> list[tuple[int, str]]:
 def test_ctrl_c_to_the_farm_stops_both_nodes_without_traceback(tmp_path):
     tag = uuid.uuid4().hex
     log = tmp_path / "season.csv"
-    farm = subprocess.Popen([sys.executable, "-m", "crop_agent_ros.run_farm", "--policy", "refill", "--seasons", "100",
+    farm = subprocess.Popen([sys.executable, "-m", "crop_agent_ros.ros.farm", "--policy", "refill", "--seasons", "100",
                              "--log", str(log), "--no-plot"], env={**isolated_ros_env(), "FARM_TEST_TAG": tag},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ros_support.REPO,
                             start_new_session=True)

@@ -9,7 +9,7 @@ import statistics
 import ros_support  # noqa: F401, E402  (private ROS_DOMAIN_ID before any context exists)
 
 from crop_agent_ros.cli import main  # noqa: E402
-from crop_agent_ros.ros_bench import BLOCK_DAYS  # noqa: E402
+from crop_agent_ros.ros.bench import BLOCK_DAYS  # noqa: E402
 
 
 def test_ros_bench_interleaves_baselines_with_the_bridge_days(capsys):

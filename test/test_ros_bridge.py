@@ -8,7 +8,7 @@ import pytest
 
 import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exists)
 
-from crop_agent_ros.bridge import RosIrrigationEnv  # noqa: E402
+from crop_agent_ros.ros.bridge import RosIrrigationEnv  # noqa: E402
 from crop_sim_ros.task import IrrigationEnv  # noqa: E402
 
 pytestmark = pytest.mark.slow

@@ -16,9 +16,9 @@ import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exis
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from std_msgs.msg import Float32MultiArray, Float64MultiArray  # noqa: E402
 
-from crop_agent_ros.bridge import RosIrrigationEnv  # noqa: E402
-from crop_agent_ros.ros_client import PrivateRos  # noqa: E402
-from crop_agent_ros.ros_process import NodeProcess, isolated_ros_env  # noqa: E402
+from crop_agent_ros.ros.bridge import RosIrrigationEnv  # noqa: E402
+from crop_agent_ros.ros.spin import PrivateRos  # noqa: E402
+from crop_agent_ros.ros.process import NodeProcess, isolated_ros_env  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
 from crop_sim_ros.season_log import LOG_COLUMNS  # noqa: E402
 from crop_sim_ros.task import IrrigationEnv  # noqa: E402
@@ -244,7 +244,7 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
 # --- the agent node -------------------------------------------------------------------------------------------
 
 def drive(tmp_path, sim_name: str, label: str, *params: str) -> tuple[int, str]:
-    agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name=label,
+    agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name=label,
                         log_path=tmp_path / f"{label}.out",
                         ros_args=["-p", f"sim_node:={sim_name}", "-p", "drive:=true", "-p", f"timeout:={TIMEOUT_S}",
                                   *params])
@@ -362,7 +362,7 @@ def test_reacting_outlook_agent_reads_its_climate_and_sowing_date_from_parameter
             ("missing", (), "needs the field's climate:=<generator> and sowing_date:=YYYY-MM-DD"),
             ("unknown", ("-p", "climate:=mars", "-p", "sowing_date:=2000-04-01"), "no climate 'mars'"),
             ("baddate", ("-p", "climate:=benton", "-p", "sowing_date:=April"), "sowing_date 'April' is not a date")):
-        agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name=f"reacting_{label}",
+        agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name=f"reacting_{label}",
                             log_path=tmp_path / f"reacting_{label}.out",
                             ros_args=["-p", f"sim_node:={name}", *policy, *params])
         try:
@@ -383,7 +383,7 @@ def test_reacting_outlook_agent_reads_its_climate_and_sowing_date_from_parameter
         requested.append(offline.act(obs))
         obs, _, _, _, info = env.step(requested[-1])
         expected.append(info["irrigation_applied_mm"])
-    agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name="reacting_outlook",
+    agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="reacting_outlook",
                         log_path=tmp_path / "reacting_outlook.out",
                         ros_args=["-p", f"sim_node:={name}", *policy, "-p", "climate:=benton",
                                   "-p", "sowing_date:=2000-04-01"])
@@ -425,7 +425,7 @@ def test_reacting_agent_refuses_an_observation_it_cannot_read(tmp_path, paper_si
     """A reacting agent with its task named does not ask the simulator: the first observation (latched) is
     refused, one line, exit 2."""
     name, _ = paper_sim
-    agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name="reacting",
+    agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="reacting",
                         log_path=tmp_path / "reacting.out",
                         ros_args=["-p", f"sim_node:={name}", "-p", "policy:=budget-rule", "-p", "task:=benton-quota"])
     try:

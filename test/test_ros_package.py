@@ -42,7 +42,7 @@ def test_setup_installs_what_ros2_run_and_launch_need():
     for needle in ("share/ament_index/resource_index/packages", "resource/{PACKAGE}", "share/{PACKAGE}",
                    "package.xml", "launch/*.py", "config/*.yaml", "lib/{PACKAGE}", "scripts/sim_node",
                    "scripts/agent_node", "sim_node = crop_sim_ros.sim_node:main",
-                   "agent_node = crop_agent_ros.agent_node:main"):
+                   "agent_node = crop_agent_ros.ros.agent_node:main"):
         assert needle in text, needle
     assert (REPO / "resource" / "crop_sim_ros").is_file()
     for exe in ("sim_node", "agent_node"):
@@ -50,7 +50,7 @@ def test_setup_installs_what_ros2_run_and_launch_need():
 
 
 def test_launch_file_and_parameter_file_match_the_nodes():
-    from crop_agent_ros import agent as agent_node
+    from crop_agent_ros.ros import agent as agent_node
     from crop_sim_ros import sim_node
 
     launch = ast.unparse(ast.parse((REPO / "launch" / "farm.launch.py").read_text()))

@@ -25,9 +25,9 @@ from rosgraph_msgs.msg import Clock  # noqa: E402
 from std_msgs.msg import Float32MultiArray, Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from crop_agent_ros.ros_client import PrivateRos, call  # noqa: E402
-from crop_agent_ros.ros_process import NodeProcess, _shm_files_of, clean_dead_ports, isolated_ros_env  # noqa: E402
-from crop_agent_ros.sim_client import SimError  # noqa: E402
+from crop_agent_ros.ros.spin import PrivateRos, call  # noqa: E402
+from crop_agent_ros.ros.process import NodeProcess, _shm_files_of, clean_dead_ports, isolated_ros_env  # noqa: E402
+from crop_agent_ros.ros.sim_client import SimError  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
 from ros_support import connect, raw_step, ros, set_parameter, step_client  # noqa: E402, F401 (ros: a fixture)
 
@@ -79,7 +79,7 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
         assert all(got.values()), {key: len(values) for key, values in got.items()}
         for values in got.values():
             values.clear()
-        agent = NodeProcess("crop_agent_ros.agent_node", env=isolated_ros_env(), name="agent_node",
+        agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="agent_node",
                             ros_args=["-p", f"sim_node:={name}", "-p", "policy:=refill", "-p", "drive:=true"],
                             log_path=tmp_path / "agent.out")
         ros.spin_until(lambda: agent.poll() is not None, 60, "the agent to grow its season")

@@ -29,8 +29,8 @@ from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
-from crop_agent_ros.ros_client import PrivateRos  # noqa: E402
-from crop_agent_ros.ros_process import isolated_ros_env  # noqa: E402
+from crop_agent_ros.ros.spin import PrivateRos  # noqa: E402
+from crop_agent_ros.ros.process import isolated_ros_env  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
 from crop_sim_ros import sim_node  # noqa: E402
 from crop_sim_ros.season_log import LOG_COLUMNS  # noqa: E402

@@ -46,7 +46,7 @@ def test_train_reports_steps_run_times_and_regrets(tmp_path, capsys):
 
 
 def test_seconds_since_launch_counts_the_interpreter_start():
-    code = ("import time; time.sleep(0.6); from crop_agent_ros.train import seconds_since_launch; "
+    code = ("import time; time.sleep(0.6); from crop_agent_ros.learning.train import seconds_since_launch; "
             "print(seconds_since_launch())")
     since = float(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout)
     assert 0.6 <= since < 60.0

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..train import silent_logger, validation_scenario
+from .train import silent_logger, validation_scenario
 from .agent import ACTION_KINDS, ACTION_SCALE_MM, ALGORITHMS, RESIDUAL_SPAN_MM, AgentInterface, ObservationScaler
 
 REWARD_SCALE_USD = 1000.0

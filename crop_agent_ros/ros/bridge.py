@@ -16,8 +16,8 @@ infinite actions raise ValueError.
 ``via="topic"`` (default): each step is one topic round trip: the command on ``~/irrigation_step`` (which
 the simulator applies and steps at once), the answer on ``~/step_result`` and ``~/observation``.
 ``via="service"``: the general protocol (command on ``~/irrigation``, its acknowledgement, the ``~/step``
-service), about two round trips. See :mod:`crop_agent_ros.sim_client` and ``python -m
-crop_agent_ros.ros_bench``. One bridge per simulator node: a second client stepping the same
+service), about two round trips. See :mod:`crop_agent_ros.ros.sim_client` and ``python -m
+crop_agent_ros.ros.bench``. One bridge per simulator node: a second client stepping the same
 simulator is detected (the day it gets back is not the day it expected) and raises.
 
 Family tasks (``scenario="benton-quota"``, or a simulator started with one): the observation space is the
@@ -36,7 +36,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from .ros_client import PrivateRos
+from .spin import PrivateRos
 from .sim_client import SimClient, SimError, scenario_layout
 
 __all__ = ["RosIrrigationEnv", "SimError"]

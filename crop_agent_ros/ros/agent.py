@@ -1,4 +1,4 @@
-"""The agent node's class and parameters (run it with ``agent_node``: :mod:`crop_agent_ros.agent_node`,
+"""The agent node's class and parameters (run it with ``agent_node``: :mod:`crop_agent_ros.ros.agent_node`,
 whose docstring describes what it does)."""
 
 
@@ -15,7 +15,7 @@ from std_msgs.msg import Float32MultiArray, Float64MultiArray
 
 from crop_sim_ros import ros_interface as ri
 
-from .policies import NODE_POLICIES
+from ..policies import NODE_POLICIES
 from .sim_client import UNCHANGED, SimClient, scenario_layout
 
 NODE_NAME = "crop_agent"
@@ -63,7 +63,7 @@ def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.
     tuned for the family task ``task``) or ``agent`` (a family agent's policy file; ``climate``: the site's, for
     an agent with a climate outlook). ValueError for an unknown name or a missing parameter,
     FileNotFoundError for a missing policy or rule file."""
-    from .policies import ConstantPolicy, make_policy  # noqa: PLC0415
+    from ..policies import ConstantPolicy, make_policy  # noqa: PLC0415
 
     if kind not in NODE_POLICIES:
         raise ValueError(f"unknown policy {kind!r}; known: {', '.join(NODE_POLICIES)}")
@@ -72,15 +72,15 @@ def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.
     if kind == "ppo":
         return make_policy("ppo", ppo_path=policy_file or None)
     if kind == "budget-rule":
-        from .policies.family_tuning import tuned_rule  # noqa: PLC0415
+        from ..policies.family_tuning import tuned_rule  # noqa: PLC0415
         return tuned_rule(task)
     if kind == "agent":
         if not policy_file:
             raise ValueError("policy agent needs policy_file:=<model.zip of a family agent>")
-        from .learning.agent import LearnedPolicy  # noqa: PLC0415
+        from ..learning.agent import LearnedPolicy  # noqa: PLC0415
         agent = LearnedPolicy(policy_file)
         if climate:
-            from .policies.outlook import normal_et0_mm  # noqa: PLC0415
+            from ..policies.outlook import normal_et0_mm  # noqa: PLC0415
             normal_et0_mm(climate)  # an unknown climate is refused at start, by name
             agent.site_climate = climate
         return agent
@@ -96,7 +96,7 @@ def check_observation_size(policy, size: int, where: str) -> None:
 
 
 class AgentNode(Node):
-    """What it does: see :mod:`crop_agent_ros.agent_node`."""
+    """What it does: see :mod:`crop_agent_ros.ros.agent_node`."""
 
     def __init__(self, node_name: str = NODE_NAME, **kwargs):
         super().__init__(node_name, **kwargs)

@@ -2,7 +2,7 @@
 
     ros2 run crop_sim_ros agent_node --ros-args -p policy:=refill              # reacts to the simulator
     ros2 run crop_sim_ros agent_node --ros-args -p policy:=ppo -p drive:=true   # grows a season itself
-    python -m crop_agent_ros.agent_node --ros-args ...                         # the same without a workspace
+    python -m crop_agent_ros.ros.agent_node --ros-args ...                         # the same without a workspace
 
 Two ways of working:
 
@@ -17,9 +17,9 @@ Two ways of working:
   prints a summary of each season (yield t/ha, irrigation mm, return) as a line
   ``season summary: {json}`` and exits (status 0; 1 if the simulator failed or did not answer within
   ``timeout`` seconds, the start included). The simulator's ``seed`` and ``weather_season`` parameters are
-  set for each reset only and restored after it (:class:`~crop_agent_ros.sim_client.SimClient`).
+  set for each reset only and restored after it (:class:`~crop_agent_ros.ros.sim_client.SimClient`).
 
-Policies (parameter ``policy``, built by :func:`crop_agent_ros.agent.make_agent_policy`): ``zero``;
+Policies (parameter ``policy``, built by :func:`crop_agent_ros.ros.agent.make_agent_policy`): ``zero``;
 ``constant`` (``constant_mm`` mm/day); ``best-constant`` and ``refill`` (the rules tuned on generated seasons);
 ``ppo`` (a Stable-Baselines3 PPO policy file, ``policy_file``, by default the shipped
 ``crop_agent_ros/policies/ppo_benton.zip``, checked against the task's spaces when it loads). For the task
@@ -138,7 +138,7 @@ def _run(argv: list[str]) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     from .agent import NODE_NAME, AgentNode, PolicyMismatch
-    from .ros_client import ServiceTimeout
+    from .spin import ServiceTimeout
     from .sim_client import SimError
 
     rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)

@@ -43,7 +43,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", type=Path, default=None,
                         help="output directory (default runs/evaluate, or runs/eval-<task> with --task)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    from .learning.evaluate_task import add_task_arguments
+    from .evaluate_task import add_task_arguments
     add_task_arguments(parser)
 
 
@@ -76,8 +76,8 @@ def parse_seeds(text: str) -> list[int]:
 def make_policies(names: list[str], ppo_path=None) -> dict:
     """The policies of ``names`` (make_policy's names, and ``oracle``), built before any season runs;
     UsageError names a policy that is unknown, or whose file is missing or not a policy for this task."""
-    from .policies import make_policy
-    from .policies.oracle import OraclePolicy
+    from ..policies import make_policy
+    from ..policies.oracle import OraclePolicy
     if not names:
         raise UsageError("--policies: no policy named")
     policies = {}
@@ -89,8 +89,8 @@ def make_policies(names: list[str], ppo_path=None) -> dict:
 
 def evaluate(policy_names: list[str], scenario_name: str, seeds: list[int], ppo_path=None, record: bool = True):
     """Run every policy; returns (rows, episodes by policy, oracle results, contexts)."""
-    from .policies.oracle import OraclePolicy
-    from .policies.rollout import run_episodes, scenario_of, season_contexts
+    from ..policies.oracle import OraclePolicy
+    from ..policies.rollout import run_episodes, scenario_of, season_contexts
     policies = make_policies(policy_names, ppo_path)
     scenario = scenario_of(scenario_name)
     print(f"evaluating {', '.join(policy_names)} on '{scenario.name}' with noise seeds {seeds[0]}..{seeds[-1]} "
@@ -200,7 +200,7 @@ def plot_policy(name: str, episodes, context, path: Path) -> None:
 
 def run(args) -> int:
     if args.task is not None:
-        from .learning.evaluate_task import run_task
+        from .evaluate_task import run_task
         run_task(args)
         return 0
     if args.address is not None or args.cpus is not None:

@@ -1,6 +1,6 @@
 """Simulated days per second through ROS, against bare rclpy baselines measured in alternating rounds.
 
-    python -m crop_agent_ros.ros_bench [--rounds 5] [--seasons 1]
+    python -m crop_agent_ros.ros.bench [--rounds 5] [--seasons 1]
 
 Three measurements, each between two processes on this machine (Fast DDS, localhost discovery, a
 private ROS_DOMAIN_ID):
@@ -88,10 +88,10 @@ class Baselines:
         from std_msgs.msg import Float64MultiArray
         from std_srvs.srv import Trigger
 
-        from .ros_client import PrivateRos, wait_for_service, wait_for_subscribers
-        from .ros_process import NodeProcess
+        from .spin import PrivateRos, wait_for_service, wait_for_subscribers
+        from .process import NodeProcess
 
-        self.peer = NodeProcess("crop_agent_ros.ros_bench", args=[SERVE_FLAG], name="baseline peer")
+        self.peer = NodeProcess("crop_agent_ros.ros.bench", args=[SERVE_FLAG], name="baseline peer")
         self.ros = PrivateRos("ros_bench_client")
         try:
             self.client = self.ros.node.create_client(Trigger, "bench_trigger")
@@ -156,7 +156,7 @@ class Bridge:
 
     def __init__(self, via: str, tmp: Path, action_mm: float = 5.0):
         from .bridge import RosIrrigationEnv
-        from .ros_process import NodeProcess
+        from .process import NodeProcess
 
         self.via, self.action_mm = via, action_mm
         namespace = f"/bench{os.getpid()}_{via}"
@@ -273,7 +273,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    from .ros_process import isolated_ros_env, pick_domain_id
+    from .process import isolated_ros_env, pick_domain_id
 
     for name in ("rounds", "calls", "seasons"):
         if getattr(args, name) < 1:
@@ -315,7 +315,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if SERVE_FLAG in argv:
         return serve_baseline()
-    parser = argparse.ArgumentParser(prog="python -m crop_agent_ros.ros_bench", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m crop_agent_ros.ros.bench", description=__doc__.split("\n\n")[0])
     add_arguments(parser)
     return run(parser.parse_args(argv))
 

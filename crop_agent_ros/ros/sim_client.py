@@ -1,6 +1,6 @@
 """A client of the simulator node: reset (a service call), and one simulated day, in one of two ways.
 
-Shared by the Gymnasium bridge (:mod:`crop_agent_ros.bridge`) and the agent node's drive mode. It runs on
+Shared by the Gymnasium bridge (:mod:`crop_agent_ros.ros.bridge`) and the agent node's drive mode. It runs on
 the caller's node and executor (one thread; no background spinning), with ``call_async`` and its own
 ``spin_once`` loop.
 
@@ -52,7 +52,7 @@ from std_srvs.srv import Trigger
 from crop_sim_ros import ros_interface as ri
 from crop_sim_ros.task.layout import PAPER, ObservationLayout, layout_of_size
 
-from .ros_client import ServiceTimeout, call, spin_until, wait_for_service
+from .spin import ServiceTimeout, call, spin_until, wait_for_service
 
 
 UNCHANGED = object()  # reset(): leave this simulator parameter as it is

@@ -1,7 +1,7 @@
 """Grow a season over ROS 2 with one command: start the simulator node and an agent node as two processes,
 let the agent drive the season(s), print the summary, stop both.
 
-    python -m crop_agent_ros.run_farm [--policy ppo|refill|best-constant|constant|zero|budget-rule|agent]
+    python -m crop_agent_ros.ros.farm [--policy ppo|refill|best-constant|constant|zero|budget-rule|agent]
                                       [--policy-file F] [--seasons 1] [--scenario NAME] [--seed 0] [--log season.csv]
 
 Defaults: the shipped PPO policy (``crop_agent_ros/policies/ppo_benton.zip``) on the embedded default
@@ -30,8 +30,8 @@ from pathlib import Path
 
 from crop_sim_ros.usage import EXIT_USAGE, UsageError
 
-from .policies import NODE_POLICIES
-from .ros_process import NodeProcess, isolated_ros_env, pick_domain_id
+from ..policies import NODE_POLICIES
+from .process import NodeProcess, isolated_ros_env, pick_domain_id
 
 SUMMARY_PREFIX = "season summary: "
 MAX_SEASONS = 100_000  # the agent node's own bound of its ``seasons`` parameter
@@ -127,7 +127,7 @@ def _grow(args) -> int:
     try:
         sim = NodeProcess("crop_sim_ros.sim_node", ros_args=sim_args, env=env, name="sim_node",
                           log_path=workdir / "sim_node.out")
-        agent = NodeProcess("crop_agent_ros.agent_node", ros_args=agent_args, env=env, name="agent_node",
+        agent = NodeProcess("crop_agent_ros.ros.agent_node", ros_args=agent_args, env=env, name="agent_node",
                             log_path=workdir / "agent_node.out")
         while agent.poll() is None:
             if sim.poll() is not None:
@@ -221,8 +221,8 @@ def plot_season_log(log: Path, png: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m crop_agent_ros.run_farm ...`` is ``crop-sim farm ...``."""
-    from .cli import main as crop_sim
+    """``python -m crop_agent_ros.ros.farm ...`` is ``crop-sim farm ...``."""
+    from ..cli import main as crop_sim
 
     return crop_sim(["farm", *(sys.argv[1:] if argv is None else argv)])
 

@@ -68,7 +68,7 @@ def add_arguments(parser) -> None:
                         help="potential-based shaping of the training reward (evaluation: true reward)")
     parser.add_argument("--ship", action="store_true", help="copy the policy to crop_agent_ros/policies/ppo_benton")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    from .learning.train_task import add_task_arguments
+    from .train_task import add_task_arguments
     add_task_arguments(parser)
 
 
@@ -84,7 +84,7 @@ class PolicyOfModel:
         pass
 
     def act(self, obs):
-        from .policies.sb3 import action_to_mm, features
+        from ..policies.sb3 import action_to_mm, features
         action, _ = self.model.predict(features(obs, self.feature_set), deterministic=True)
         return action_to_mm(action, obs, self.action_mode, **self.mapping)
 
@@ -108,7 +108,7 @@ def feature_action_wrapper(venv, action_mode: str, feature_set: str = "full", ma
     evaluation uses the true reward."""
     from gymnasium import spaces
     from stable_baselines3.common.vec_env import VecEnvWrapper
-    from .policies.sb3 import FEATURE_SETS, action_to_mm, features
+    from ..policies.sb3 import FEATURE_SETS, action_to_mm, features
 
     class FeatureActionWrapper(VecEnvWrapper):
         def __init__(self):
@@ -205,10 +205,10 @@ def train(args) -> dict:
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
-    from .policies.oracle import OraclePolicy
-    from .policies.rollout import run_episodes, scenario_of, season_contexts
-    from .policies.rules import tuned_refill_policy
-    from .policies.sb3 import FEATURE_SETS, FEATURE_VERSION
+    from ..policies.oracle import OraclePolicy
+    from ..policies.rollout import run_episodes, scenario_of, season_contexts
+    from ..policies.rules import tuned_refill_policy
+    from ..policies.sb3 import FEATURE_SETS, FEATURE_VERSION
 
     torch.set_num_threads(1)
     # wall and CPU seconds of each part before training (a busy machine stretches wall time, not CPU time)
@@ -370,7 +370,7 @@ def train(args) -> dict:
               "best_validation": best, "final": rows[-1], "versions": package_versions()}
     (out / "config.json").write_text(json.dumps(config, indent=2, default=str) + "\n")
     if args.ship:
-        from .policies.sb3 import SHIPPED_PPO
+        from ..policies.sb3 import SHIPPED_PPO
         shutil.copyfile(out / "model.zip", SHIPPED_PPO)
         (SHIPPED_PPO.with_suffix(".json")).write_text(json.dumps({**policy_config, "training": config}, indent=2,
                                                                  default=str) + "\n")
@@ -397,7 +397,7 @@ def run(args) -> int:
         if not 1 <= value <= high:
             raise UsageError(f"{name} {value}: must be in 1..{high:,}")
     if args.task is not None:
-        from .learning.train_task import train_task
+        from .train_task import train_task
         train_task(args)
         return 0
     # the family agent's options: refused on the paper's task rather than ignored

@@ -1,6 +1,6 @@
 """Start and stop ROS node processes (the farm's nodes, benchmark peers) from Python, without rclpy.
 
-Used by ``run_farm`` (one command that grows a season over ROS), ``ros_bench`` and the ROS tests.
+Used by :mod:`.farm` (one command that grows a season over ROS), :mod:`.bench` and the ROS tests.
 
 - ``isolated_ros_env()``: an environment for child processes that keeps discovery on this machine
   (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) on a chosen ``ROS_DOMAIN_ID``. The wheels'
