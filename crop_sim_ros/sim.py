@@ -1,5 +1,7 @@
 """The simulator node's class. Run it with ``sim_node`` (:mod:`crop_sim_ros.sim_node`, whose docstring describes
-the day protocol, the season log, stopping and the parameters)."""
+the day protocol, the season log, stopping and the parameters). What commands, steps and resets do to the farm
+is decided by its :class:`~crop_sim_ros.session.FarmSession`; the node wires it to parameters, topics, services,
+the season log and timers."""
 
 from __future__ import annotations
 
@@ -11,7 +13,7 @@ import socket
 import threading
 from collections import deque
 from dataclasses import dataclass, fields, replace
-from datetime import date, datetime, timedelta, timezone
+from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +29,7 @@ from std_srvs.srv import Trigger
 
 from . import ros_interface as ri
 from .season_log import TERM_COLUMNS, SeasonLog, log_path_problem
+from .session import FarmSession
 from .sim_node import MODES, NODE_NAME, PARAMETERS, ParameterSpec
 from .task import IrrigationEnv, ObservationNoise, Scenario, get_scenario, load_scenario
 from .task.layout import PAPER, layout_of_size
@@ -201,30 +204,16 @@ class SimNode(Node):
             raise StartupError(problem)
         self._env_config = self._config()
         try:
-            self._env = IrrigationEnv(build_scenario(self._env_config))
+            env = IrrigationEnv(build_scenario(self._env_config))
         except Exception as error:  # noqa: BLE001 - a broken weather file, ...: a start-up configuration error
             raise StartupError(scenario_error(self._env_config, error)) from None
-        self._max_mm = float(self._env.scenario.max_irrigation_mm)
+        # what commands, steps and resets do to the farm (under self._lock)
+        self._session = FarmSession(env)
         self._log_path = self._resolve_log_path()
         self._log = self._open_log(self._log_path)
         self._run_id = f"{socket.gethostname()}-{os.getpid()}-{datetime.now(timezone.utc):%Y%m%dT%H%M%S}"
 
-        # season bookkeeping (under self._lock)
-        self._episode = 0
-        self._day = 0
-        self._ended = True
-        self._end_reason = "no season yet"
-        self._return = 0.0
-        self._obs: np.ndarray | None = None
-        self._seed_used: int | None = None
-        self._info_season = -1
-        self._sowing: date = date(2000, 1, 1)
-        self._pending: tuple[int, float, int] | None = None  # (day, mm, sequence)
-        # counters of ~/status
-        self._sequence = 0  # commands received since the start (both command topics)
-        self._accepted = 0
-        self._rejected = 0
-        self._days_without_command = 0  # this season
+        # the season log's counters of ~/status
         self._log_rows_lost = 0
         self._log_error = ""  # why the last row could not be written; "" once a row is written again
         self._status_changed = True
@@ -263,11 +252,11 @@ class SimNode(Node):
         ok, summary = self._reset()
         if not ok:
             raise StartupError(summary["error"])
-        scenario = self._env.scenario
+        scenario = self._session.env.scenario
         files = (f", weather files from {scenario.resolved_data_dir}" if scenario.weather.kind != "generator"
                  else "")
         self.get_logger().info(f"ready: scenario {scenario.name!r}{files}, mode {self._mode()}, max irrigation "
-                               f"{self._max_mm:g} mm, log {self._log_path}")
+                               f"{self._session.max_mm:g} mm, log {self._log_path}")
 
     # --- parameters --------------------------------------------------------------------------------------
 
@@ -342,60 +331,23 @@ class SimNode(Node):
 
     # --- commands ----------------------------------------------------------------------------------------
 
-    def _check_command(self, values: list) -> tuple[str | None, bool]:
-        """(why this command [day, mm] or [day, mm, episode] is refused, or None; whether it is only a question
-        of timing: a past or future day, another episode, a season that ended)."""
-        day = values[0] if values else math.nan
-        mm = values[1] if len(values) > 1 else math.nan
-        if len(values) not in (2, 3):
-            return f"expected [day, mm] or [day, mm, episode], got {len(values)} values", False
-        if not (math.isfinite(day) and day == int(day)):
-            return f"day {day!r} is not a whole number", False
-        if len(values) == 3 and values[2] != self._episode:
-            return f"episode {values[2]!r} is not the current episode {self._episode}", True
-        if self._ended:
-            return f"the season has ended ({self._end_reason}); call ~/reset", True
-        if day < self._day:
-            return f"day {int(day)} is past: the current day is {self._day}", True
-        if day > self._day:
-            return f"day {int(day)} is in the future: the current day is {self._day}", True
-        if not math.isfinite(mm):
-            return f"irrigation {mm!r} mm is not a finite number", False
-        if mm < 0.0:
-            return f"irrigation {mm!r} mm is negative", False
-        if mm > self._max_mm:
-            return f"irrigation {mm!r} mm exceeds the limit of {self._max_mm:g} mm/day", False
-        return None, False
-
     def _accept(self, values: list, and_step: bool = False) -> bool:
-        """Validate a command; if valid it becomes the day's pending command. Reports its fate on
-        ~/irrigation_status and logs refusals. Returns whether it was accepted."""
-        self._sequence += 1
-        sequence = self._sequence
-        day = values[0] if values else math.nan
-        mm = values[1] if len(values) > 1 else math.nan
-        problem, timing = self._check_command(values)
-        if problem is None and and_step and self._mode() != "lockstep":
-            problem, timing = "mode is free_running: the node steps by itself; use ~/irrigation", False
+        """The session checks a command (an accepted one becomes the day's pending command); its fate goes to
+        ~/irrigation_status and refusals to the log. Returns whether it was accepted."""
+        outcome = self._session.command(values, and_step, lockstep=self._mode() == "lockstep")
         self._status_changed = True
-        if problem is None:
-            self._accepted += 1
-            self._pending = (self._day, float(mm), sequence)
-            text = (f"accepted {mm:g} mm for day {self._day} (episode {self._episode})"
-                    + (", stepping" if and_step else ""))
-        else:
-            self._rejected += 1
-            text = f"rejected: {problem}"
+        if not outcome.accepted:
             where = "irrigation_step" if and_step else "irrigation"
-            if timing:  # a command that came too late or too early: at most one log line a second
-                self.get_logger().warning(f"{where} command #{sequence} {values}: {text} (such rejections are "
-                                          "logged at most once a second; all are on ~/irrigation_status)",
-                                          throttle_duration_sec=1.0)
+            if outcome.timing:  # a command that came too late or too early: at most one log line a second
+                self.get_logger().warning(f"{where} command #{outcome.sequence} {values}: {outcome.text} (such "
+                                          "rejections are logged at most once a second; all are on "
+                                          "~/irrigation_status)", throttle_duration_sec=1.0)
             else:
-                self.get_logger().warning(f"{where} command #{sequence} {values}: {text}")
-        if problem is not None or not and_step:  # an accepted stepping command's fate is its ~/step_result
-            self._pub_status.publish(ri.status_message(problem is None, text, day, mm, sequence, self._day))
-        return problem is None
+                self.get_logger().warning(f"{where} command #{outcome.sequence} {values}: {outcome.text}")
+        if not outcome.accepted or not and_step:  # an accepted stepping command's fate is its ~/step_result
+            self._pub_status.publish(ri.status_message(outcome.accepted, outcome.text, outcome.day, outcome.mm,
+                                                       outcome.sequence, outcome.current_day))
+        return outcome.accepted
 
     def _on_irrigation(self, message: Float64MultiArray) -> None:
         with self._lock:
@@ -417,15 +369,15 @@ class SimNode(Node):
         if self._mode() != "lockstep":
             response.success = False
             response.message = ri.summary_json({"error": "mode is free_running: the node steps by itself; set "
-                                                "mode:=lockstep to step by service", "episode": self._episode,
-                                                "day": self._day})
+                                                "mode:=lockstep to step by service",
+                                                "episode": self._session.episode, "day": self._session.day})
             return response
         response.success, summary = self._step(defer=True)
         response.message = ri.summary_json(summary)
         return response
 
     def _on_tick(self) -> None:
-        if not self._ended:
+        if not self._session.ended:
             ok, summary = self._step(free_running=True)
             if not ok:
                 self.get_logger().error(ri.summary_json(summary))
@@ -434,84 +386,53 @@ class SimNode(Node):
         """Advance one day; (success, summary). The summary is a dict: callers that answer a service encode
         it (JSON costs time the topic path does not need to spend)."""
         with self._lock:
-            if self._ended:
-                return False, {"error": f"the season has ended ({self._end_reason}); call ~/reset",
-                               "episode": self._episode, "day": self._day}
-            day, obs_before = self._day, self._obs
-            if self._pending is not None and self._pending[0] == day:
-                _, mm, sequence = self._pending
-            else:
-                mm, sequence = 0.0, -1
-            self._pending = None
-            try:
-                obs, reward, terminated, truncated, info = self._env.step(mm)
-            except Exception as error:  # noqa: BLE001 - the environment refused: state unchanged
-                self.get_logger().error(f"step of day {day} failed: {error}")
-                return False, {"error": f"{type(error).__name__}: {error}", "episode": self._episode,
-                               "day": self._day}
-            terminated, truncated, reward = bool(terminated), bool(truncated), float(reward)
-            requested, applied = info["irrigation_requested_mm"], info["irrigation_applied_mm"]
-            if applied < requested:  # the capacity or the quota cut the command (it was within the action bound)
-                self._report_cut(day, requested, applied, sequence)
-            self._obs = obs
-            self._day = int(info["day"])
-            self._return = float(info["episode_return"])
-            if sequence < 0:
-                self._days_without_command += 1
+            session = self._session
+            outcome = session.step()
+            if not outcome.ok:
+                if outcome.environment_failed:
+                    self.get_logger().error(f"step of day {session.day} failed: {outcome.error}")
+                return False, {"error": outcome.error, "episode": outcome.episode, "day": outcome.day}
+            day, info = outcome.day_before, outcome.info
+            if outcome.cut:  # the capacity or the quota cut the command (it was within the action bound)
+                self._pub_status.publish(ri.status_message(True, session.cut_reason(outcome), day,
+                                                           outcome.requested_mm, outcome.sequence, day + 1,
+                                                           applied_mm=outcome.applied_mm))
+            if outcome.sequence < 0:
                 self._status_changed = True
                 if free_running:  # in lockstep a step without a command is the caller's choice of 0 mm
                     self.get_logger().warning(
-                        f"free running: day {day} of episode {self._episode} passed without a command (0 mm); "
-                        f"{self._days_without_command} of {day + 1} days so far (logged at most once a second; "
+                        f"free running: day {day} of episode {session.episode} passed without a command (0 mm); "
+                        f"{session.days_without_command} of {day + 1} days so far (logged at most once a second; "
                         "counted on ~/status)", throttle_duration_sec=1.0)
             log_error = self._write_log_row(
-                {**self._log_common(day, obs_before),
-                 "command_sequence": sequence, "irrigation_mm": applied, "irrigation_requested_mm": requested,
-                 "reward": reward,
-                 "episode_return": info["episode_return"], "terminated": terminated, "truncated": truncated,
+                {**self._log_common(day, outcome.obs_before),
+                 "command_sequence": outcome.sequence, "irrigation_mm": outcome.applied_mm,
+                 "irrigation_requested_mm": outcome.requested_mm, "reward": outcome.reward,
+                 "episode_return": info["episode_return"], "terminated": outcome.terminated,
+                 "truncated": outcome.truncated,
                  **{k: info[k] for k in ("rain_mm", "runoff_mm", "drainage_mm", "transpiration_mm", "et0_mm",
                                          "arid", "potential_yield_t_ha", "normalized_return")},
                  "end_true_biomass_t_ha": info["true_biomass_t_ha"], "end_true_paw_mm": info["true_paw_mm"],
                  "end_thermal_time_degc_d": info["thermal_time_degc_d"], "end_fsolar": info["fsolar"],
                  "end_yield_t_ha": info["yield_t_ha"], "end_mature": info["mature"]}, day)
-            yield_t_ha = info["yield_t_ha"] if terminated else 0.0
-            self._publish(info["irrigation_applied_mm"], reward, terminated, truncated, yield_t_ha, sequence,
-                          defer=defer)
-            if terminated or truncated:
-                self._ended = True
-                self._end_reason = (f"crop mature on day {self._day}" if terminated
-                                    else f"weather ran out on day {self._day}")
+            self._publish(outcome.applied_mm, outcome.reward, outcome.terminated, outcome.truncated,
+                          outcome.yield_t_ha, outcome.sequence, defer=defer)
+            if session.ended:
                 self.get_logger().info(
-                    f"episode {self._episode} ended: {self._end_reason}, yield {yield_t_ha:.3f} t/ha, return "
-                    f"{self._return:.4f}; {self._days_without_command} of {self._day} days without a command")
+                    f"episode {session.episode} ended: {session.end_reason}, yield {outcome.yield_t_ha:.3f} t/ha, "
+                    f"return {session.episode_return:.4f}; {session.days_without_command} of {session.day} days "
+                    "without a command")
                 self._publish_status()
-            summary = {"episode": self._episode, "day": self._day, "date": info["date"],
-                       "irrigation_mm": info["irrigation_applied_mm"], "reward": reward, "return": self._return,
-                       "terminated": terminated, "truncated": truncated, "yield_t_ha": yield_t_ha,
-                       "command_sequence": sequence, "irrigation_requested_mm": requested,
-                       "reward_unit": self._env.scenario.reward_unit, "observation": ri.observation_list(obs)}
+            summary = {"episode": session.episode, "day": session.day, "date": info["date"],
+                       "irrigation_mm": outcome.applied_mm, "reward": outcome.reward,
+                       "return": session.episode_return, "terminated": outcome.terminated,
+                       "truncated": outcome.truncated, "yield_t_ha": outcome.yield_t_ha,
+                       "command_sequence": outcome.sequence, "irrigation_requested_mm": outcome.requested_mm,
+                       "reward_unit": session.env.scenario.reward_unit,
+                       "observation": ri.observation_list(outcome.obs)}
             if log_error:
                 summary["log_error"] = log_error
             return True, summary
-
-    def _report_cut(self, day: int, requested: float, applied: float, sequence: int) -> None:
-        """~/irrigation_status (level WARN): the day's command was cut by the system's daily capacity or by the
-        season's quota left."""
-        params = self._env.params
-        why = (f"the irrigation capacity of {params.capacity_mm_per_day:g} mm/d"
-               if applied == params.capacity_mm_per_day else
-               f"the season's quota of {self._terms[3]:g} mm ({applied:g} mm were left)")
-        text = f"cut: {applied:g} of the {requested:g} mm commanded for day {day} applied, by {why}"
-        self._pub_status.publish(ri.status_message(True, text, day, requested, sequence, day + 1, applied_mm=applied))
-
-    def _season_terms(self, info: dict) -> tuple[float, ...]:
-        """The season's farm terms in FARM_TERMS_LABELS order, without the episode (see ros_interface)."""
-        params, max_mm = self._env.params, float(self._env.scenario.max_irrigation_mm)
-        capacity = min(float(params.capacity_mm_per_day), max_mm)
-        if not self._env.scenario.is_family_task:  # no money terms: the reward is in t/ha
-            return (math.nan, math.nan, math.nan, math.inf, capacity)
-        return (float(info["yield_value_per_t"]) * params.dry_matter_fraction, float(info["water_cost_per_mm"]),
-                float(params.event_cost), float(info["quota_mm"]), capacity)
 
     def _write_log_row(self, row: dict, day: int) -> str | None:
         """Append the day's row to the season log; None, or why it could not be written (the day stands; the
@@ -521,7 +442,8 @@ class SimNode(Node):
         except OSError as error:
             self._log_rows_lost += 1
             failing_before = bool(self._log_error)
-            self._log_error = (f"season log {self._log_path}: the row of episode {self._episode} day {day} was not "
+            self._log_error = (f"season log {self._log_path}: the row of episode {self._session.episode} day {day} "
+                               "was not "
                                f"written ({error.strerror or error}); {self._log_rows_lost} row"
                                f"{'s' if self._log_rows_lost > 1 else ''} lost so far")
             self.get_logger().error(self._log_error + " (logged at most once a second; counted on ~/status)",
@@ -537,13 +459,14 @@ class SimNode(Node):
         return None
 
     def _log_common(self, day: int, obs: np.ndarray) -> dict:
+        session = self._session
         row = {"wall_time_utc": datetime.now(timezone.utc).isoformat(timespec="milliseconds"), "run_id": self._run_id,
-               "episode": self._episode, "scenario": self._env.scenario.name,
-               "seed": "" if self._seed_used is None else self._seed_used, "weather_season": self._info_season,
-               "day": day, "date": (self._sowing + timedelta(days=day)).isoformat(),
-               "reward_unit": self._env.scenario.reward_unit}
+               "episode": session.episode, "scenario": session.env.scenario.name,
+               "seed": "" if session.seed is None else session.seed, "weather_season": session.weather_season,
+               "day": day, "date": (session.sowing + timedelta(days=day)).isoformat(),
+               "reward_unit": session.env.scenario.reward_unit}
         row.update({f"obs_{name}": float(value) for name, value in zip(layout_of_size(len(obs)).names, obs)})
-        row.update(zip(TERM_COLUMNS, self._terms))
+        row.update(zip(TERM_COLUMNS, session.terms))
         return row
 
     # --- reset -------------------------------------------------------------------------------------------
@@ -562,9 +485,10 @@ class SimNode(Node):
 
     def _reset(self) -> tuple[bool, dict]:
         with self._lock:
+            session = self._session
             values = self._values()
             config = self._config(values)
-            env, log, log_path = self._env, self._log, self._log_path
+            env, log, log_path = session.env, self._log, self._log_path
             try:
                 if config != self._env_config:
                     try:
@@ -575,48 +499,33 @@ class SimNode(Node):
                 if wanted_log != self._log_path:
                     log, log_path = self._open_log(wanted_log), wanted_log
                 seed, season = values["seed"], values["weather_season"]
-                options = {"season": season} if season >= 0 else None
-                obs, info = env.reset(seed=seed if seed >= 0 else None, options=options)
+                info = session.reset(env, seed if seed >= 0 else None, season if season >= 0 else None)
             except Exception as error:  # noqa: BLE001 - the old season stays as it was
                 if log is not self._log:
                     log.close()
                 message = f"reset failed, the current season is unchanged: {one_line(error)}"
                 self.get_logger().error(message)
-                return False, {"error": message, "episode": self._episode, "day": self._day}
-            if env is not self._env:
-                self._env, self._env_config = env, config
-                self._max_mm = float(env.scenario.max_irrigation_mm)
+                return False, {"error": message, "episode": session.episode, "day": session.day}
+            self._env_config = config
             if log is not self._log:
                 self._log.close()
                 self._log, self._log_path = log, log_path
-            self._episode += 1
-            self._seed_used = seed if seed >= 0 else None
-            self._obs = obs
-            self._info_season = info["season"]
-            self._day = int(info["day"])
-            self._sowing = date.fromisoformat(info["date"])
-            self._ended = False
-            self._end_reason = ""
-            self._return = 0.0
-            self._pending = None
-            self._days_without_command = 0
-            self._terms = self._season_terms(info)
             family = env.scenario.is_family_task
-            self._msg_obs = ri.observation_message(obs)  # the layout's labels (20 or 29 values)
+            self._msg_obs = ri.observation_message(session.obs)  # the layout's labels (20 or 29 values)
             self._msg_result = ri.float64_array(ri.step_result_labels(family), [0] * len(ri.STEP_RESULT_LABELS))
-            self._pub_terms.publish(ri.float64_array(ri.FARM_TERMS_LABELS, (self._episode, *self._terms)))
+            self._pub_terms.publish(ri.float64_array(ri.FARM_TERMS_LABELS, (session.episode, *session.terms)))
             self._publish(0.0, 0.0, False, False, 0.0, -1)
             self._publish_status()
-            summary = {"episode": self._episode, "day": self._day, "date": info["date"],
-                       "scenario": env.scenario.name, "seed": self._seed_used, "weather_season": info["season"],
-                       "weather_source": info["weather_source"], "max_irrigation_mm": self._max_mm,
+            summary = {"episode": session.episode, "day": session.day, "date": info["date"],
+                       "scenario": env.scenario.name, "seed": session.seed, "weather_season": info["season"],
+                       "weather_source": info["weather_source"], "max_irrigation_mm": session.max_mm,
                        "potential_yield_t_ha": info["potential_yield_t_ha"], "reward_unit": env.scenario.reward_unit,
                        "yield_value_per_t": float(info["yield_value_per_t"]),
                        "farm_terms": {label.split("[")[0]: (value if math.isfinite(value) else None)
-                                      for label, value in zip(ri.FARM_TERMS_LABELS[1:], self._terms)},
-                       "observation_size": len(obs), "observation": ri.observation_list(obs)}
-            self.get_logger().info(f"episode {self._episode}: {env.scenario.name}, weather {info['weather_source']}, "
-                                   f"sown {info['date']}, seed {self._seed_used}")
+                                      for label, value in zip(ri.FARM_TERMS_LABELS[1:], session.terms)},
+                       "observation_size": len(session.obs), "observation": ri.observation_list(session.obs)}
+            self.get_logger().info(f"episode {session.episode}: {env.scenario.name}, weather "
+                                   f"{info['weather_source']}, sown {info['date']}, seed {session.seed}")
             return True, summary
 
     # --- publishing --------------------------------------------------------------------------------------
@@ -626,13 +535,14 @@ class SimNode(Node):
         """Publish the current day: the observation and the step result at once; the other topics at once, or
         (``defer``, when a client waits) right after this callback, so that the client waits less."""
         self._flush_deferred()  # keep each topic in day order
-        self._msg_obs.data = self._obs
+        session = self._session
+        self._msg_obs.data = session.obs
         self._pub_obs.publish(self._msg_obs)
-        self._msg_result.data = [float(self._episode), float(self._day), float(irrigation_mm), float(reward),
-                                 float(terminated), float(truncated), float(yield_t_ha), float(self._return),
+        self._msg_result.data = [float(session.episode), float(session.day), float(irrigation_mm), float(reward),
+                                 float(terminated), float(truncated), float(yield_t_ha), float(session.episode_return),
                                  float(sequence)]
         self._pub_result.publish(self._msg_result)
-        rest = (self._obs, self._day, self._sowing)
+        rest = (session.obs, session.day, session.sowing)
         if defer and self.executor is not None:
             self._deferred.append(rest)
             self.executor.create_task(self._on_deferred)  # runs after this callback (and its response)
@@ -670,19 +580,20 @@ class SimNode(Node):
         """~/status now: level ERROR while the season log cannot be written, WARN after rows were lost or when
         free-running days passed without a command this season, else OK."""
         free_running = self._mode() == "free_running"
+        session = self._session
         if self._log_error:
             level, text = DiagnosticStatus.ERROR, self._log_error
         elif self._log_rows_lost:
             level, text = DiagnosticStatus.WARN, f"season log: {self._log_rows_lost} rows lost"
-        elif free_running and self._days_without_command:
-            level, text = DiagnosticStatus.WARN, (f"free running: {self._days_without_command} days of this season "
-                                                  "passed without a command")
+        elif free_running and session.days_without_command:
+            level, text = DiagnosticStatus.WARN, (f"free running: {session.days_without_command} days of this "
+                                                  "season passed without a command")
         else:
             level, text = DiagnosticStatus.OK, "ok"
         self._pub_node_status.publish(ri.node_status_message(level, text, {
-            "episode": self._episode, "day": self._day, "mode": self._mode(), "season_ended": self._ended,
-            "days_without_command": self._days_without_command, "commands_received": self._sequence,
-            "commands_accepted": self._accepted, "commands_rejected": self._rejected,
+            "episode": session.episode, "day": session.day, "mode": self._mode(), "season_ended": session.ended,
+            "days_without_command": session.days_without_command, "commands_received": session.commands_received,
+            "commands_accepted": session.commands_accepted, "commands_rejected": session.commands_rejected,
             "log_path": self._log_path, "log_rows_written": self._log.rows_written,
             "log_rows_lost": self._log_rows_lost, "log_error": self._log_error}))
         self._status_changed = False

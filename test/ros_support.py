@@ -101,7 +101,15 @@ def set_parameter(ros, name, **values):
         else:
             v = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=value)
         request.parameters.append(Parameter(name=key, value=v))
-    response = call(ros.executor, client, request)
+    # setting the same values again is harmless, and a request sent right after discovery can be lost in DDS
+    # (the server's reader had not matched this new client yet; ROS 2 services never resend): try again
+    for attempt in range(4):
+        try:
+            response = call(ros.executor, client, request, timeout=5.0)
+            break
+        except TimeoutError:
+            if attempt == 3:
+                raise
     ros.node.destroy_client(client)
     return response.results
 
