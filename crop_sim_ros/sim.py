@@ -518,7 +518,8 @@ class SimNode(Node):
             self._publish_status()
             summary = {"episode": session.episode, "day": session.day, "date": info["date"],
                        "scenario": env.scenario.name, "seed": session.seed, "weather_season": info["season"],
-                       "weather_source": info["weather_source"], "max_irrigation_mm": session.max_mm,
+                       "weather_source": info["weather_source"],
+                       "site_climate": env.scenario.weather.climate or None, "max_irrigation_mm": session.max_mm,
                        "potential_yield_t_ha": info["potential_yield_t_ha"], "reward_unit": env.scenario.reward_unit,
                        "yield_value_per_t": float(info["yield_value_per_t"]),
                        "farm_terms": {label.split("[")[0]: (value if math.isfinite(value) else None)

@@ -38,8 +38,9 @@ The ``~/step`` response (std_srvs/Trigger) message is a JSON summary of the new 
 irrigation_mm (applied), irrigation_requested_mm, reward, return, reward_unit (``t/ha`` for the paper's task,
 ``USD/ha`` for a family task), terminated, truncated, yield_t_ha, command_sequence and the observation (the
 float32 values as exact decimals), and ``log_error`` if the day's row could not be written to the season
-log; ``~/reset`` answers likewise (episode, day 0, scenario, seed, weather, reward_unit, farm_terms: the
-season's terms as on ``~/farm_terms``, null for none, observation_size and the observation).
+log; ``~/reset`` answers likewise (episode, day 0, scenario, seed, weather, site_climate: the fitted weather
+generator of real seasons' site as the scenario names it, null for none or for generated weather, reward_unit,
+farm_terms: the season's terms as on ``~/farm_terms``, null for none, observation_size and the observation).
 
 Family tasks
 ------------

@@ -341,6 +341,31 @@ def test_learned_agent_drives_a_family_season_like_offline(tmp_path, quota_sim, 
         assert offline.outlook.climates == ["benton"] and list(offline.outlook.sowing_days) == [91]  # 2000-04-01
 
 
+def test_driving_outlook_agent_on_real_weather_reads_the_sites_climate_its_scenario_names(tmp_path,
+                                                                                        outlook_agent_file):
+    """A family task on Maricopa's real seasons (a scenario file: weather of kind seasons, climate maricopa):
+    the reset names the site's climate, and the agent irrigates as offline with that climate."""
+    from crop_agent_ros.learning.agent import LearnedPolicy
+
+    scenario = tmp_path / "quota-maricopa-real.yaml"
+    scenario.write_text("base: benton-quota\nname: quota-maricopa-real\nweather:\n  kind: seasons\n  climate: maricopa\n"
+                        "  seasons:\n    - {path: simple_r_inputs/Weather/AZ000701.WTH, format: dssat, "
+                        "sowing_date: 2008-01-15}\n")
+    sim, name, _ = ros_support.start_sim(tmp_path, params={"scenario": str(scenario)})
+    try:
+        status, output = drive(tmp_path, name, "agent_real", "-p", "policy:=agent", "-p",
+                               f"policy_file:={outlook_agent_file}", "-p", "seed:=2")
+        assert status == 0, output
+        summary = season_summary(output)
+        offline = LearnedPolicy(outlook_agent_file)
+        offline.site_climate = "maricopa"
+        expected = offline_season(offline, load_scenario(scenario), 2)
+        assert offline.outlook.climates == ["maricopa"] and list(offline.outlook.sowing_days) == [14]
+        assert {k: summary[k] for k in expected} == expected
+    finally:
+        assert sim.stop() == 0, sim.output()
+
+
 def test_reacting_outlook_agent_reads_its_climate_and_sowing_date_from_parameters(tmp_path, quota_sim,
                                                                                     outlook_agent_file):
     """Reacting, the agent sees observations only: the field's climate and sowing date are its parameters; its

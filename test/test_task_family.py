@@ -239,6 +239,20 @@ def test_climates4_holds_climates3s_seasons_first_and_a_warmed_early_benton_part
                             "weather": {"kind": "generator", "generator": "benton", "warming_degc": 12}})
 
 
+def test_real_seasons_name_their_sites_climate_and_only_they_do():
+    assert [get_scenario(n).weather.climate for n in ("heldout", "maricopa-real", "gainesville-real")] == [
+        "benton", "maricopa", "gainesville"]
+    assert get_scenario("maricopa-generated").weather.climate == ""
+    real = {"kind": "seasons", "seasons": [{"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}
+    values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
+              "sowing_date": "2000-04-01"}
+    assert scenario_from_dict({**values, "weather": {**real, "climate": "maricopa"}}).weather.climate == "maricopa"
+    with pytest.raises(ValueError, match="weather.climate: 'mars' is not one of benton"):
+        scenario_from_dict({**values, "weather": {**real, "climate": "mars"}})
+    with pytest.raises(ValueError, match="a 'generator' source's climate is its generator's"):
+        scenario_from_dict({**values, "weather": {"kind": "generator", "generator": "benton", "climate": "benton"}})
+
+
 def test_the_smaller_pivot_task_grows_benton_early_quotas_seasons_within_5_5_mm_a_day():
     pivot, early = get_scenario("benton-early-pivot"), get_scenario("benton-early-quota")
     assert pivot.limits.capacity_mm_per_day == 5.5 and early.limits.capacity_mm_per_day == 8.0

@@ -148,15 +148,18 @@ def add_arguments(parser) -> None:
 
 @dataclass(frozen=True)
 class EvaluationSet:
-    """One evaluation set: the task's terms on ``scenario``'s weather, seasons ``seasons`` (indices);
-    ``site_climate``: the weather generator of a real set's site (what an agent with a climate outlook reads
-    there; a generated season's source names its own)."""
+    """One evaluation set: the task's terms on ``scenario``'s weather, seasons ``seasons`` (indices)."""
 
     name: str
     role: str
     scenario: object
     seasons: np.ndarray
-    site_climate: str | None = None
+
+    @property
+    def site_climate(self) -> str | None:
+        """The weather generator of a real set's site, as its scenario names it (what an agent with a climate
+        outlook reads there; a generated season's source names its own)."""
+        return self.scenario.weather.climate or None
 
 
 def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[EvaluationSet]:
@@ -169,7 +172,7 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
                         else f"transfer test: trained on {generators[0]} weather only")
     heldout = get_scenario("heldout", task.data_dir)
     sets = [EvaluationSet(HELD_OUT_REAL, "held-out real seasons (Benton 2000, Paterson 1992-1995)",
-                          with_weather_of(task, heldout), np.arange(heldout.n_seasons), site_climate="benton")]
+                          with_weather_of(task, heldout), np.arange(heldout.n_seasons))]
     other_dates = []  # far sets of a site sown on another date (a part named apart from its generator)
     for name, source in sources.items():
         generator = source.weather.generator
@@ -186,7 +189,7 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
                               with_weather_of(task, reseeded(generated, far_seed, far_seasons)),
                               np.arange(far_seasons)))
     sets.append(EvaluationSet("maricopa-real", f"{held_out_climate} (Maricopa AZ, real seasons 2007-2009)",
-                              with_weather_of(task, real), np.arange(real.n_seasons), site_climate="maricopa"))
+                              with_weather_of(task, real), np.arange(real.n_seasons)))
     # Those come last: each set's terms are drawn with a seed from its position, so climates3-quota's other
     # sets keep climates-quota's positions, seasons and terms (their oracle returns are the same).
     return sets + other_dates

@@ -294,10 +294,11 @@ def continuation_source(task, set_name: str, asked: str | None = None):
         if name not in parts:
             raise ValueError(f"family MPC: {task.name} has no climate {name!r} (climates: {', '.join(parts)})")
         return name, parts[name]
-    if set_name.startswith("maricopa-"):
-        return "maricopa", get_scenario("maricopa-generated", task.data_dir)
-    if set_name == "heldout-real":
-        return "benton", get_scenario("benton-generated", task.data_dir)
+    # the held-out climate's sets (generated and real), and the held-out real seasons: their site's generator
+    real = {"heldout-real": "heldout"}.get(set_name, "maricopa-real" if set_name.startswith("maricopa-") else None)
+    if real is not None:
+        climate = get_scenario(real, task.data_dir).weather.climate
+        return climate, get_scenario(f"{climate}-generated", task.data_dir)
     raise ValueError(f"family MPC: no weather generator known for set {set_name!r}")
 
 

@@ -45,7 +45,8 @@ PARAMETERS = {
                                 "= the simulator's scenario parameter, read at start)")),
     "climate": ("", _descriptor(S, "policy agent with a climate outlook: the field's climate (a fitted weather "
                                    "generator: benton, gainesville, maricopa; warmed as benton+4C) for seasons no "
-                                   "generator made; reacting, for every season ('' = drive: the season's generator)")),
+                                   "generator made ('' = drive: the season's generator, or for real weather the "
+                                   "site's climate its scenario names); reacting, for every season")),
     "sowing_date": ("", _descriptor(S, "policy agent with a climate outlook, reacting: the field's sowing date, "
                                        "YYYY-MM-DD (drive: each reset's)")),
     "constant_mm": (10.0, _descriptor(D, "policy constant: irrigation per day, mm", 0.0, 100.0)),
@@ -108,6 +109,7 @@ class AgentNode(Node):
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.sim = "/" + p["sim_node"].strip("/")  # fully qualified: the launch file may give "ns/crop_sim"
         self.drive_mode = bool(p["drive"])
+        self._climate = p["climate"].strip() or None
         self._client: SimClient | None = None
         # budget-rule without a task: the simulator's scenario names it (built in start(), once it is read)
         self.policy = (None if p["policy"] == "budget-rule" and not p["task"].strip()
@@ -204,6 +206,8 @@ class AgentNode(Node):
             check_observation_size(self.policy, obs.size, f"the observation of {self.sim}")  # a scenario change
             self.policy.reset(None if seed < 0 else seed + k)
             if getattr(self.policy, "outlook", None) is not None:  # its fields' climate, from the season's weather
+                # real weather: the climate:= parameter, else the site's climate as the scenario names it
+                self.policy.site_climate = self._climate or info.get("site_climate")
                 self.policy.begin_field_season(info["weather_source"], info["date"])
             water = 0.0
             total = 0.0

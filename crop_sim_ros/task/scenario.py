@@ -14,6 +14,8 @@ Weather sources (``weather.kind``):
   ``crop_sim_ros.weather.generator.warmed``). Needs no file.
 - ``file``: one weather file (``path``, ``format``), the season starting on ``sowing_date``.
 - ``seasons``: several (file, format, sowing date) seasons; ``reset`` picks one (or the one asked for).
+  A ``file`` or ``seasons`` source may name its site's ``climate``: the fitted generator of that site (what a
+  climate outlook reads on these real seasons, and whose seasons a planner draws there), e.g. ``maricopa``.
 - ``mixture``: the seasons of several built-in scenarios (``mixture: [benton-generated, gainesville-generated]``),
   each prepared as its own scenario prepares it (its sowing date, site and season length): training across
   climates.
@@ -164,6 +166,7 @@ class WeatherSource:
     seasons: tuple[SeasonFile, ...] = ()
     mixture: tuple[str, ...] = ()
     warming_degc: float = 0.0
+    climate: str = ""  # real seasons: their site's fitted generator ('' none; a generated source's is its own)
 
     def __post_init__(self) -> None:
         if self.kind not in WEATHER_KINDS:
@@ -184,6 +187,10 @@ class WeatherSource:
         elif not self.seasons or (self.kind == "file" and len(self.seasons) != 1):
             raise ValueError(f"weather.seasons: a {self.kind!r} source needs "
                              f"{'one season' if self.kind == 'file' else 'at least one season'}")
+        if self.climate and (self.kind not in ("file", "seasons") or self.climate not in GENERATOR_PARAMETERS):
+            raise ValueError(f"weather.climate: {self.climate!r} " + (
+                f"is not one of {', '.join(GENERATOR_PARAMETERS)}" if self.kind in ("file", "seasons")
+                else f"names the site of real seasons; a {self.kind!r} source's climate is its generator's"))
         if self.kind != "generator" and self.warming_degc != 0.0:
             raise ValueError(f"weather.warming_degc: only a 'generator' source can be warmed, not {self.kind!r}")
 
@@ -389,7 +396,7 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
         raise ValueError("weather: missing (a mapping with kind: generator, file or seasons)")
     weather = _take(values.pop("weather"),
                     {"kind", "seed", "n_seasons", "generator", "seasons", "path", "format", "mixture",
-                     "warming_degc"}, "weather")
+                     "warming_degc", "climate"}, "weather")
     kind = weather.get("kind")
     if kind == "file":
         if sowing is None:
@@ -406,7 +413,7 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
     if kind == "mixture":
         names = weather.get("mixture")
         weather["mixture"] = tuple(names) if isinstance(names, list) else names
-    extra = set(weather) - {"kind", "seed", "n_seasons", "generator", "mixture", "warming_degc"}
+    extra = set(weather) - {"kind", "seed", "n_seasons", "generator", "mixture", "warming_degc", "climate"}
     if extra:
         raise ValueError(f"weather.{sorted(extra)[0]}: not a field of a {kind!r} source")
     source = WeatherSource(seasons=tuple(seasons), **weather)
