@@ -600,6 +600,11 @@ class SimNode(Node):
         self._status_changed = False
 
     def destroy_node(self):
+        self.finish()
+        return super().destroy_node()
+
+    def finish(self) -> None:
+        """Publish what is deferred and close the season log (what must not be cut short when stopping)."""
         if self._deferred and self.context.ok():
             self._flush_deferred()  # the last day's topics, which the executor did not get to
         if self._log is not None and not self._log.closed:
@@ -607,4 +612,3 @@ class SimNode(Node):
             lost = getattr(self, "_log_rows_lost", 0)
             self.get_logger().info(f"season log {self._log.path} closed: {self._log.rows_written} rows written by "
                                    f"this run" + (f", {lost} lost" if lost else ""))
-        return super().destroy_node()

@@ -74,7 +74,7 @@ Stopping and exit status
 ------------------------
 SIGINT and SIGTERM stop the node at any moment: the callback under way (a step, a reset) finishes, the
 last day's topics go out, the season log is closed, and the process exits with status 0, without a
-traceback. A bad start (unknown scenario or crop, a scenario file that is not a scenario, a value out of its
+traceback (within ``EXIT_WITHIN_S`` of the log's closing, even if rclpy's teardown hangs). A bad start (unknown scenario or crop, a scenario file that is not a scenario, a value out of its
 range, a broken weather file, an unusable log path, an unknown command-line argument) is one line on stderr
 and exit status 2. An unknown ``-p name:=value`` is a warning naming it and the known parameters.
 
@@ -92,7 +92,9 @@ import signal
 import sys
 from typing import NamedTuple
 
-from crop_sim_ros.usage import node_arguments
+from crop_sim_ros.usage import exit_within, node_arguments
+
+EXIT_WITHIN_S = 10.0  # after a signal, once the season log is closed, the process is gone within this
 
 NODE_NAME = "crop_sim"
 MODES = ("lockstep", "free_running")
@@ -212,7 +214,11 @@ def _run(argv: list[str], stop: _StopRequest) -> int:
         return 0
     finally:
         if node is not None:
-            node.destroy_node()  # publishes what is deferred, closes the season log
+            node.finish()  # publishes what is deferred, closes the season log
+        if stop.requested:  # nothing left that must finish: the process is gone within EXIT_WITHIN_S from here
+            exit_within(EXIT_WITHIN_S)
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
 
 

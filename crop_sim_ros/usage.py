@@ -49,3 +49,15 @@ def node_arguments(program: str, argv: list[str], usage) -> int | None:
               file=sys.stderr)
         return EXIT_USAGE
     return None
+
+
+def exit_within(seconds: float, status: int = 0) -> None:
+    """End the process with ``status`` after ``seconds`` unless it has exited by then (a daemon timer): a node
+    stopping on a signal is gone in bounded time even if rclpy's teardown hangs (once more than 20 s here, with
+    the machine loaded). Arm it only once nothing is left that must finish (the season log is closed)."""
+    import os
+    import threading
+
+    watchdog = threading.Timer(seconds, os._exit, args=(status,))
+    watchdog.daemon = True
+    watchdog.start()

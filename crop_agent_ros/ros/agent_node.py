@@ -2,7 +2,7 @@
 
     ros2 run crop_sim_ros agent_node --ros-args -p policy:=refill              # reacts to the simulator
     ros2 run crop_sim_ros agent_node --ros-args -p policy:=ppo -p drive:=true   # grows a season itself
-    python -m crop_agent_ros.ros.agent_node --ros-args ...                         # the same without a workspace
+    python -m crop_agent_ros.ros.agent_node --ros-args ...                     # the same without a workspace
 
 Two ways of working:
 
@@ -41,12 +41,10 @@ observation: one line); 1 when the simulator failed or did not answer within ``t
 
 from __future__ import annotations
 
-import os
 import signal
 import sys
-import threading
 
-from crop_sim_ros.usage import node_arguments
+from crop_sim_ros.usage import exit_within, node_arguments
 
 class StopSignal(BaseException):
     """SIGINT or SIGTERM arrived: stop where we are and exit 0. A BaseException, so that no ``except
@@ -69,9 +67,7 @@ def _stop_on_signal(signum, frame) -> None:
     # (pybind11 error_already_set -> std::terminate, 1 of 20). The executor raises StopSignal at its next spin
     # (every wait is a bounded spin_once, :func:`_stoppable_executor`); the start-up checks between its steps;
     # and this timer ends the process with status 0 if it is somehow still there.
-    watchdog = threading.Timer(EXIT_WITHIN_S, os._exit, args=(0,))
-    watchdog.daemon = True
-    watchdog.start()
+    exit_within(EXIT_WITHIN_S)
 
 
 def _stop_if_signalled() -> None:
