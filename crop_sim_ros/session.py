@@ -174,8 +174,9 @@ class FarmSession:
         if self.ended:
             return StepOutcome(f"the season has ended ({self.end_reason}); call ~/reset", self.episode, self.day)
         day, obs_before = self.day, self.obs
-        mm, sequence = (self.pending[1], self.pending[2]) if self.pending is not None and self.pending[0] == day \
-            else (0.0, -1)
+        mm, sequence = 0.0, -1
+        if self.pending is not None and self.pending[0] == day:
+            _, mm, sequence = self.pending
         self.pending = None
         try:
             obs, reward, terminated, truncated, info = self.env.step(mm)

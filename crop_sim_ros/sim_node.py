@@ -74,9 +74,10 @@ Stopping and exit status
 ------------------------
 SIGINT and SIGTERM stop the node at any moment: the callback under way (a step, a reset) finishes, the
 last day's topics go out, the season log is closed, and the process exits with status 0, without a
-traceback (within ``EXIT_WITHIN_S`` of the log's closing, even if rclpy's teardown hangs). A bad start (unknown scenario or crop, a scenario file that is not a scenario, a value out of its
-range, a broken weather file, an unusable log path, an unknown command-line argument) is one line on stderr
-and exit status 2. An unknown ``-p name:=value`` is a warning naming it and the known parameters.
+traceback (within ``EXIT_WITHIN_S`` of the log's closing, even if rclpy's teardown hangs). A bad start
+(unknown scenario or crop, a scenario file that is not a scenario, a value out of its range, a broken weather
+file, an unusable log path, an unknown command-line argument) is one line on stderr and exit status 2. An
+unknown ``-p name:=value`` is a warning naming it and the known parameters.
 
 Parameters: see :data:`PARAMETERS` (``sim_node --help``, ``ros2 param describe /crop_sim <name>``). Changes
 of ``scenario``, ``data_dir``, ``crop``, ``cultivar``, ``soil``, ``co2_ppm``, ``noise_scale``,

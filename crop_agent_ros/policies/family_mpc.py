@@ -294,8 +294,8 @@ def continuation_source(task, set_name: str, asked: str | None = None):
         if name not in parts:
             raise ValueError(f"family MPC: {task.name} has no climate {name!r} (climates: {', '.join(parts)})")
         return name, parts[name]
-    # the held-out climate's sets (generated and real), and the held-out real seasons: their site's generator
-    real = {"heldout-real": "heldout"}.get(set_name, "maricopa-real" if set_name.startswith("maricopa-") else None)
+    # the held-out real seasons and the held-out climate's sets: the site climate their real scenario names
+    real = "heldout" if set_name == "heldout-real" else "maricopa-real" if set_name.startswith("maricopa-") else None
     if real is not None:
         climate = get_scenario(real, task.data_dir).weather.climate
         return climate, get_scenario(f"{climate}-generated", task.data_dir)

@@ -19,9 +19,9 @@ Normals: each climate's mean daily ET0 (FAO-56 Penman-Monteith, mm) by day of th
 :data:`NORMAL_YEARS` years drawn by its weather generator with seed :data:`NORMALS_SEED` (no training,
 validation, evaluation or continuation pool uses it). A climate is a fitted generator, warmed or not
 (``benton``, ``benton+4C``: the name its seasons' source carries). A generated season's climate is read from
-its source; a real season's (held-out Benton, Maricopa) is its site's generator, given by the evaluation set
-(for Maricopa's three real seasons, a generator whose fit includes those years: that set's outlook is not
-independent of it; the 50 generated Maricopa seasons are). The water-budget rule's ``outlook_pace``
+its source; a real season's (held-out Benton, Maricopa) is its site's generator, as its scenario names it
+(``weather.climate``; for Maricopa's three real seasons, a generator whose fit includes those years: that
+set's outlook is not independent of it; the 50 generated Maricopa seasons are). The water-budget rule's ``outlook_pace``
 (:mod:`crop_agent_ros.policies.family`) reads the same normals (:func:`normal_share_today`).
 """
 
@@ -182,8 +182,8 @@ class ClimateOutlook:
 
 class ReadsOutlook:
     """A policy that may read a :class:`ClimateOutlook` (``self.outlook``, None: it does not): told its fields'
-    climates before each season. ``site_climate`` is the climate of seasons no generator made (the
-    evaluation sets it for its real seasons; the agent node from its ``climate`` parameter)."""
+    climates before each season. ``site_climate`` is the climate of seasons no generator made (the evaluation
+    sets it from a real set's scenario; the agent node from its ``climate`` parameter or the reset's)."""
 
     outlook: ClimateOutlook | None = None
     site_climate: str | None = None

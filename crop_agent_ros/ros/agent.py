@@ -109,15 +109,16 @@ class AgentNode(Node):
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.sim = "/" + p["sim_node"].strip("/")  # fully qualified: the launch file may give "ns/crop_sim"
         self.drive_mode = bool(p["drive"])
-        self._climate = p["climate"].strip() or None
+        climate = p["climate"].strip()
+        self._climate = climate or None
         self._client: SimClient | None = None
         # budget-rule without a task: the simulator's scenario names it (built in start(), once it is read)
         self.policy = (None if p["policy"] == "budget-rule" and not p["task"].strip()
                        else make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"], p["task"].strip(),
-                                              p["climate"].strip()))
+                                              climate))
         if getattr(self.policy, "outlook", None) is not None and not self.drive_mode:
             # reacting, it sees observations only: the field's climate and sowing date are its parameters
-            if not p["climate"].strip() or not p["sowing_date"].strip():
+            if not climate or not p["sowing_date"].strip():
                 raise ValueError(f"{p['policy_file']}: this agent reads a climate outlook; reacting to observations it "
                                  "needs the field's climate:=<generator> and sowing_date:=YYYY-MM-DD (or drive:=true)")
             try:

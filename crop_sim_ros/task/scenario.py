@@ -187,12 +187,17 @@ class WeatherSource:
         elif not self.seasons or (self.kind == "file" and len(self.seasons) != 1):
             raise ValueError(f"weather.seasons: a {self.kind!r} source needs "
                              f"{'one season' if self.kind == 'file' else 'at least one season'}")
-        if self.climate and (self.kind not in ("file", "seasons") or self.climate not in GENERATOR_PARAMETERS):
-            raise ValueError(f"weather.climate: {self.climate!r} " + (
-                f"is not one of {', '.join(GENERATOR_PARAMETERS)}" if self.kind in ("file", "seasons")
-                else f"names the site of real seasons; a {self.kind!r} source's climate is its generator's"))
+        if self.climate and self.kind not in ("file", "seasons"):
+            raise ValueError(f"weather.climate: {self.climate!r} names the site of real seasons; a {self.kind!r} "
+                             "source's climate is its generator's")
+        if self.climate and self.climate not in GENERATOR_PARAMETERS:
+            raise ValueError(f"weather.climate: {self.climate!r} is not one of {', '.join(GENERATOR_PARAMETERS)}")
         if self.kind != "generator" and self.warming_degc != 0.0:
             raise ValueError(f"weather.warming_degc: only a 'generator' source can be warmed, not {self.kind!r}")
+
+
+# What a weather mapping may name besides its seasons (a file source's path and format become its one season).
+SOURCE_FIELDS = frozenset(f.name for f in fields(WeatherSource)) - {"seasons"}
 
 
 @dataclass(frozen=True)
@@ -394,9 +399,7 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
     sowing = None if sowing is None else _as_date("sowing_date", sowing)
     if "weather" not in values:
         raise ValueError("weather: missing (a mapping with kind: generator, file or seasons)")
-    weather = _take(values.pop("weather"),
-                    {"kind", "seed", "n_seasons", "generator", "seasons", "path", "format", "mixture",
-                     "warming_degc", "climate"}, "weather")
+    weather = _take(values.pop("weather"), {*SOURCE_FIELDS, "seasons", "path", "format"}, "weather")
     kind = weather.get("kind")
     if kind == "file":
         if sowing is None:
@@ -413,7 +416,7 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
     if kind == "mixture":
         names = weather.get("mixture")
         weather["mixture"] = tuple(names) if isinstance(names, list) else names
-    extra = set(weather) - {"kind", "seed", "n_seasons", "generator", "mixture", "warming_degc", "climate"}
+    extra = set(weather) - SOURCE_FIELDS
     if extra:
         raise ValueError(f"weather.{sorted(extra)[0]}: not a field of a {kind!r} source")
     source = WeatherSource(seasons=tuple(seasons), **weather)
