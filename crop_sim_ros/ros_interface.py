@@ -79,6 +79,7 @@ from __future__ import annotations
 import json
 import math
 from datetime import date, datetime, timezone
+from typing import Generic, NamedTuple, TypeVar, get_type_hints
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -148,18 +149,117 @@ SERVICE_CLIENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=Reli
 OBSERVATION_LABELS = PAPER.labels
 OBS_BIOMASS, OBS_DAY, OBS_TODAY, OBS_FORECAST, OBS_PAW, OBS_PAW_OBSERVED = BIOMASS, DAY, TODAY, FORECAST, PAW, PAW_OBSERVED
 
-BIOMASS_LABELS = ("day[d]", OBSERVATION_LABELS[BIOMASS])
-PAW_LABELS = ("day[d]", OBSERVATION_LABELS[PAW])
-WEATHER_TODAY_LABELS = ("day[d]",) + OBSERVATION_LABELS[TODAY]
-WEATHER_FORECAST_LABELS = ("for_day[d]",) + OBSERVATION_LABELS[FORECAST]
-STEP_RESULT_LABELS = ("episode[1]", "day[d]", "irrigation[mm]", "reward[1]", "terminated[0/1]",
-                      "truncated[0/1]", "yield[t/ha]", "return[1]", "command_sequence[1]")
+Record = TypeVar("Record", bound=tuple)
+_CASTS = {int: int, float: float, bool: lambda value: value == 1.0}
+
+
+class ArrayCodec(Generic[Record]):
+    """One Float64MultiArray layout, declared once: a NamedTuple's fields (typed ``int``, ``bool`` or ``float``)
+    and, for each, its label ``name[unit]``; the message's labels, :meth:`message`/:meth:`fill` (record ->
+    message) and :meth:`read` (message -> record) all derive from it. ``int`` and ``bool`` travel as float64
+    (exact for whole numbers; a bool is 1.0 or 0.0)."""
+
+    def __init__(self, record: type[Record], labels: tuple[str, ...]):
+        if len(labels) != len(record._fields):
+            raise ValueError(f"{record.__name__}: {len(record._fields)} fields, {len(labels)} labels")
+        self.record, self.labels = record, tuple(labels)
+        types = get_type_hints(record)
+        self._casts = tuple(_CASTS[types[name]] for name in record._fields)
+
+    def message(self, record: Record) -> Float64MultiArray:
+        """A new labelled message carrying ``record``."""
+        message = Float64MultiArray()
+        _layout(message, self.labels)
+        return self.fill(message, record)
+
+    def fill(self, message: Float64MultiArray, record: Record) -> Float64MultiArray:
+        """``message`` (made by :meth:`message`, reused: publishing serialises at once) now carries ``record``."""
+        message.data = [float(value) for value in record]
+        return message
+
+    def read(self, message: Float64MultiArray) -> Record:
+        """The record a message carries; ValueError if it has another number of values than the fields."""
+        values = message.data
+        if len(values) != len(self._casts):
+            raise ValueError(f"{self.record.__name__} message has {len(values)} values, expected "
+                             f"{len(self._casts)} ({','.join(self.labels)})")
+        return self.record(*(cast(value) for cast, value in zip(self._casts, values)))
+
+
+class StepResult(NamedTuple):
+    """~/step_result: the day a step produced (also the core of the step's JSON summary)."""
+    episode: int
+    day: int  # of the state after the step
+    irrigation_mm: float  # applied (after capacity and quota)
+    reward: float  # in the scenario's reward unit
+    terminated: bool  # the crop matured
+    truncated: bool
+    yield_t_ha: float  # dry yield, 0 before maturity
+    episode_return: float  # the season's return so far (JSON key "return")
+    command_sequence: int  # the command applied (-1: none)
+
+    def summary(self) -> dict:
+        """The step JSON's keys for these values."""
+        values = self._asdict()
+        values["return"] = values.pop("episode_return")
+        return values
+
+    @classmethod
+    def from_summary(cls, summary: dict) -> "StepResult":
+        """The step JSON's values as a record (KeyError names a missing key)."""
+        return cls(**{name: summary["return" if name == "episode_return" else name] for name in cls._fields})
+
+
+class FarmTerms(NamedTuple):
+    """~/farm_terms: the season's terms, drawn at each reset (NaN where the paper's task has none; inf: no limit)."""
+    episode: int
+    tuber_price_usd_per_t: float  # fresh tubers
+    water_cost_usd_per_mm: float  # delivered water + pumping energy, per mm on one ha
+    event_cost_usd: float  # per day with irrigation, per ha
+    quota_mm: float  # the season's water quota
+    capacity_mm_per_day: float  # the most the system applies in a day
+
+
+class IrrigationCommand(NamedTuple):
+    """~/irrigation and ~/irrigation_step: ``irrigation_mm`` for ``day``, valid only in ``episode`` (a command of
+    two values, without the episode, is valid in any; the simulator checks what arrives, see FarmSession)."""
+    day: int
+    irrigation_mm: float
+    episode: int
+
+
+class BiomassReading(NamedTuple):
+    """~/biomass: the day's noisy biomass (the observation's value)."""
+    day: int
+    biomass_t_ha: float
+
+
+class PawReading(NamedTuple):
+    """~/paw: the day's noisy plant-available water; NaN when the sensor gave no reading."""
+    day: int
+    paw_mm: float
+
+
+WeatherToday = NamedTuple("WeatherToday", [("day", int)] + [(name, float) for name in PAPER.names[TODAY]])
+WeatherToday.__doc__ = "~/weather/today: the day and its weather (the observation's values and units)."
+WeatherForecast = NamedTuple("WeatherForecast", [("for_day", int)] + [(name, float) for name in PAPER.names[FORECAST]])
+WeatherForecast.__doc__ = "~/weather/forecast: the noisy forecast for the next day (the observation's values)."
+
+_STEP_RESULT_LABELS = ("episode[1]", "day[d]", "irrigation[mm]", "reward[1]", "terminated[0/1]", "truncated[0/1]",
+                       "yield[t/ha]", "return[1]", "command_sequence[1]")
+STEP_RESULT = ArrayCodec(StepResult, _STEP_RESULT_LABELS)
 # A family task's reward and return are net return in USD/ha (crop_sim_ros.task.terms).
-FAMILY_STEP_RESULT_LABELS = tuple(label.replace("[1]", "[USD/ha]") if label.startswith(("reward", "return"))
-                                  else label for label in STEP_RESULT_LABELS)
-FARM_TERMS_LABELS = ("episode[1]", "tuber_price_usd_per_t[USD/t]", "water_cost_usd_per_mm[USD/mm]",
-                     "event_cost_usd[USD]", "quota_mm[mm]", "capacity_mm_per_day[mm/d]")
-IRRIGATION_LABELS = ("day[d]", "irrigation[mm]", "episode[1]")
+FAMILY_STEP_RESULT = ArrayCodec(StepResult, tuple(label.replace("[1]", "[USD/ha]")
+                                                  if label.startswith(("reward", "return")) else label
+                                                  for label in _STEP_RESULT_LABELS))
+FARM_TERMS = ArrayCodec(FarmTerms, ("episode[1]", "tuber_price_usd_per_t[USD/t]", "water_cost_usd_per_mm[USD/mm]",
+                                    "event_cost_usd[USD]", "quota_mm[mm]", "capacity_mm_per_day[mm/d]"))
+IRRIGATION = ArrayCodec(IrrigationCommand, ("day[d]", "irrigation[mm]", "episode[1]"))
+BIOMASS_READING = ArrayCodec(BiomassReading, ("day[d]", OBSERVATION_LABELS[BIOMASS]))
+PAW_READING = ArrayCodec(PawReading, ("day[d]", OBSERVATION_LABELS[PAW]))
+WEATHER_TODAY = ArrayCodec(WeatherToday, ("day[d]",) + OBSERVATION_LABELS[TODAY])
+WEATHER_FORECAST = ArrayCodec(WeatherForecast, ("for_day[d]",) + OBSERVATION_LABELS[FORECAST])
+
 
 STATUS_NAME = "crop_sim/irrigation"
 NODE_STATUS_NAME = "crop_sim/status"
@@ -172,13 +272,6 @@ NODE_STATUS_KEYS = NODE_STATUS_COUNTERS + ("mode", "season_ended", "log_path", "
 def _layout(message, labels) -> None:
     message.layout.dim = [MultiArrayDimension(label=",".join(labels), size=len(labels), stride=len(labels))]
     message.layout.data_offset = 0
-
-
-def float64_array(labels, values) -> Float64MultiArray:
-    message = Float64MultiArray()
-    _layout(message, labels)
-    message.data = [float(v) for v in values]
-    return message
 
 
 def observation_message(observation) -> Float32MultiArray:
@@ -208,8 +301,9 @@ def observation_layout(message) -> ObservationLayout:
     return layout_of_size(len(message.data))
 
 
-def step_result_labels(family_task: bool) -> tuple[str, ...]:
-    return FAMILY_STEP_RESULT_LABELS if family_task else STEP_RESULT_LABELS
+def step_result_codec(family_task: bool) -> ArrayCodec[StepResult]:
+    """~/step_result's labels name the reward unit: t/ha-based ``[1]`` for the paper's task, USD/ha for a family task."""
+    return FAMILY_STEP_RESULT if family_task else STEP_RESULT
 
 
 def observation_list(observation) -> list[float]:
@@ -219,9 +313,12 @@ def observation_list(observation) -> list[float]:
 
 def irrigation_command(day: int, mm: float, episode: int | None = None) -> Float64MultiArray:
     """A command for ``day`` (optionally only valid in ``episode``, the simulator's reset counter)."""
-    if episode is None:
-        return float64_array(IRRIGATION_LABELS[:2], (day, mm))
-    return float64_array(IRRIGATION_LABELS, (day, mm, episode))
+    if episode is None:  # the two-value form, valid in any episode
+        message = Float64MultiArray()
+        _layout(message, IRRIGATION.labels[:2])
+        message.data = [float(day), float(mm)]
+        return message
+    return IRRIGATION.message(IrrigationCommand(day, mm, episode))
 
 
 def sim_time(sowing: date, day: int) -> Time:

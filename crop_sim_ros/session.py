@@ -31,7 +31,7 @@ obs                      -      today's observation (the scenario's layout: 20 o
 episode_return           *      sum of the season's rewards (t/ha, or USD/ha for a family task)
 sowing                   date   the season's sowing date
 seed, weather_season     -      the reset's seed (None: unseeded) and the weather season drawn
-terms                    -      the season's farm terms in ``ros_interface.FARM_TERMS_LABELS`` order (no episode)
+terms                    -      the season's farm terms in ``ros_interface.FarmTerms`` order (no episode)
 max_mm                   mm/d   the largest command accepted (the scenario's action bound)
 pending                  -      (day, mm, sequence) of today's accepted command, or None
 commands_received        1      commands received since the start (accepted + rejected)
@@ -230,7 +230,7 @@ class FarmSession:
         return info
 
     def _season_terms(self, info: dict) -> tuple[float, ...]:
-        """The season's farm terms in FARM_TERMS_LABELS order, without the episode (see ros_interface)."""
+        """The season's farm terms in ros_interface.FarmTerms order, without the episode."""
         params, max_mm = self.env.params, self.max_mm
         capacity = min(float(params.capacity_mm_per_day), max_mm)
         if not self.env.scenario.is_family_task:  # no money terms: the reward is in t/ha

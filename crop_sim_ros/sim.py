@@ -231,11 +231,13 @@ class SimNode(Node):
                                                  ri.COMMAND_STATUS_QOS)
         self._pub_node_status = self.create_publisher(DiagnosticStatus, "~/" + ri.STATUS_TOPIC, ri.STATE_QOS)
         self._msg_obs = ri.observation_message(np.zeros(PAPER.size, np.float32))  # relabelled at each reset
-        self._msg_biomass = ri.float64_array(ri.BIOMASS_LABELS, (0, 0))
-        self._msg_paw = ri.float64_array(ri.PAW_LABELS, (0, 0))
-        self._msg_today = ri.float64_array(ri.WEATHER_TODAY_LABELS, [0] * 9)
-        self._msg_forecast = ri.float64_array(ri.WEATHER_FORECAST_LABELS, [0] * 9)
-        self._msg_result = ri.float64_array(ri.STEP_RESULT_LABELS, [0] * len(ri.STEP_RESULT_LABELS))
+        # Messages reused day after day (publishing serialises at once); the step result's labels follow the task.
+        self._msg_biomass = ri.BIOMASS_READING.message(ri.BiomassReading(0, 0.0))
+        self._msg_paw = ri.PAW_READING.message(ri.PawReading(0, 0.0))
+        self._msg_today = ri.WEATHER_TODAY.message(ri.WeatherToday(0, *[0.0] * 8))
+        self._msg_forecast = ri.WEATHER_FORECAST.message(ri.WeatherForecast(1, *[0.0] * 8))
+        self._result_codec = ri.STEP_RESULT
+        self._msg_result = self._result_codec.message(ri.StepResult(0, 0, 0.0, 0.0, False, False, 0.0, 0.0, -1))
 
         self.create_subscription(Float64MultiArray, "~/" + ri.IRRIGATION_TOPIC, self._on_irrigation,
                                  ri.COMMAND_SUBSCRIPTION_QOS)
@@ -415,19 +417,17 @@ class SimNode(Node):
                  "end_true_biomass_t_ha": info["true_biomass_t_ha"], "end_true_paw_mm": info["true_paw_mm"],
                  "end_thermal_time_degc_d": info["thermal_time_degc_d"], "end_fsolar": info["fsolar"],
                  "end_yield_t_ha": info["yield_t_ha"], "end_mature": info["mature"]}, day)
-            self._publish(outcome.applied_mm, outcome.reward, outcome.terminated, outcome.truncated,
-                          outcome.yield_t_ha, outcome.sequence, defer=defer)
+            result = ri.StepResult(session.episode, session.day, outcome.applied_mm, outcome.reward,
+                                   outcome.terminated, outcome.truncated, outcome.yield_t_ha, session.episode_return,
+                                   outcome.sequence)
+            self._publish(result, defer=defer)
             if session.ended:
                 self.get_logger().info(
                     f"episode {session.episode} ended: {session.end_reason}, yield {outcome.yield_t_ha:.3f} t/ha, "
                     f"return {session.episode_return:.4f}; {session.days_without_command} of {session.day} days "
                     "without a command")
                 self._publish_status()
-            summary = {"episode": session.episode, "day": session.day, "date": info["date"],
-                       "irrigation_mm": outcome.applied_mm, "reward": outcome.reward,
-                       "return": session.episode_return, "terminated": outcome.terminated,
-                       "truncated": outcome.truncated, "yield_t_ha": outcome.yield_t_ha,
-                       "command_sequence": outcome.sequence, "irrigation_requested_mm": outcome.requested_mm,
+            summary = {**result.summary(), "date": info["date"], "irrigation_requested_mm": outcome.requested_mm,
                        "reward_unit": session.env.scenario.reward_unit,
                        "observation": ri.observation_list(outcome.obs)}
             if log_error:
@@ -512,9 +512,11 @@ class SimNode(Node):
                 self._log, self._log_path = log, log_path
             family = env.scenario.is_family_task
             self._msg_obs = ri.observation_message(session.obs)  # the layout's labels (20 or 29 values)
-            self._msg_result = ri.float64_array(ri.step_result_labels(family), [0] * len(ri.STEP_RESULT_LABELS))
-            self._pub_terms.publish(ri.float64_array(ri.FARM_TERMS_LABELS, (session.episode, *session.terms)))
-            self._publish(0.0, 0.0, False, False, 0.0, -1)
+            self._result_codec = ri.step_result_codec(family)
+            self._msg_result = self._result_codec.message(ri.StepResult(0, 0, 0.0, 0.0, False, False, 0.0, 0.0, -1))
+            terms = ri.FarmTerms(session.episode, *session.terms)
+            self._pub_terms.publish(ri.FARM_TERMS.message(terms))
+            self._publish(ri.StepResult(session.episode, session.day, 0.0, 0.0, False, False, 0.0, 0.0, -1))
             self._publish_status()
             summary = {"episode": session.episode, "day": session.day, "date": info["date"],
                        "scenario": env.scenario.name, "seed": session.seed, "weather_season": info["season"],
@@ -522,8 +524,8 @@ class SimNode(Node):
                        "site_climate": env.scenario.weather.climate or None, "max_irrigation_mm": session.max_mm,
                        "potential_yield_t_ha": info["potential_yield_t_ha"], "reward_unit": env.scenario.reward_unit,
                        "yield_value_per_t": float(info["yield_value_per_t"]),
-                       "farm_terms": {label.split("[")[0]: (value if math.isfinite(value) else None)
-                                      for label, value in zip(ri.FARM_TERMS_LABELS[1:], session.terms)},
+                       "farm_terms": {name: (value if math.isfinite(value) else None)
+                                      for name, value in terms._asdict().items() if name != "episode"},
                        "observation_size": len(session.obs), "observation": ri.observation_list(session.obs)}
             self.get_logger().info(f"episode {session.episode}: {env.scenario.name}, weather "
                                    f"{info['weather_source']}, sown {info['date']}, seed {session.seed}")
@@ -531,18 +533,14 @@ class SimNode(Node):
 
     # --- publishing --------------------------------------------------------------------------------------
 
-    def _publish(self, irrigation_mm: float, reward: float, terminated: bool, truncated: bool,
-                 yield_t_ha: float, sequence: int, defer: bool = False) -> None:
+    def _publish(self, result: ri.StepResult, defer: bool = False) -> None:
         """Publish the current day: the observation and the step result at once; the other topics at once, or
         (``defer``, when a client waits) right after this callback, so that the client waits less."""
         self._flush_deferred()  # keep each topic in day order
         session = self._session
         self._msg_obs.data = session.obs
         self._pub_obs.publish(self._msg_obs)
-        self._msg_result.data = [float(session.episode), float(session.day), float(irrigation_mm), float(reward),
-                                 float(terminated), float(truncated), float(yield_t_ha), float(session.episode_return),
-                                 float(sequence)]
-        self._pub_result.publish(self._msg_result)
+        self._pub_result.publish(self._result_codec.fill(self._msg_result, result))
         rest = (session.obs, session.day, session.sowing)
         if defer and self.executor is not None:
             self._deferred.append(rest)
@@ -560,16 +558,15 @@ class SimNode(Node):
 
     def _publish_rest(self, obs, day, sowing) -> None:
         wide = obs.astype(np.float64).tolist()
-        self._msg_biomass.data = [float(day), wide[ri.OBS_BIOMASS]]
-        self._pub_biomass.publish(self._msg_biomass)
+        self._pub_biomass.publish(ri.BIOMASS_READING.fill(self._msg_biomass,
+                                                          ri.BiomassReading(day, wide[ri.OBS_BIOMASS])))
         # a family task's missing reading (paw_observed 0: a dropout, or no sensor) is NaN, not a PAW of 0 mm
         read = len(wide) == PAPER.size or wide[ri.OBS_PAW_OBSERVED] > 0.5
-        self._msg_paw.data = [float(day), wide[ri.OBS_PAW] if read else math.nan]
-        self._pub_paw.publish(self._msg_paw)
-        self._msg_today.data = [float(day), *wide[ri.OBS_TODAY]]
-        self._pub_today.publish(self._msg_today)
-        self._msg_forecast.data = [float(day + 1), *wide[ri.OBS_FORECAST]]
-        self._pub_forecast.publish(self._msg_forecast)
+        self._pub_paw.publish(ri.PAW_READING.fill(self._msg_paw,
+                                                  ri.PawReading(day, wide[ri.OBS_PAW] if read else math.nan)))
+        self._pub_today.publish(ri.WEATHER_TODAY.fill(self._msg_today, ri.WeatherToday(day, *wide[ri.OBS_TODAY])))
+        self._pub_forecast.publish(ri.WEATHER_FORECAST.fill(self._msg_forecast,
+                                                            ri.WeatherForecast(day + 1, *wide[ri.OBS_FORECAST])))
         self._pub_clock.publish(ri.clock_message(sowing, day))
 
     def _on_status_timer(self) -> None:

@@ -104,19 +104,21 @@ def test_observation_and_farm_terms_of_a_family_reset(quota_sim):
     message = observations[-1]
     assert message.layout.dim[0].label.split(",") == list(EXTENDED.labels) and message.layout.dim[0].size == 29
     assert np.asarray(message.data, np.float32).tobytes() == obs_offline.tobytes()
-    term = next(m for m in terms if m.data[0] == episode)
-    assert term.layout.dim[0].label == ",".join(ri.FARM_TERMS_LABELS)
+    message_terms = next(m for m in terms if m.data[0] == episode)
+    assert message_terms.layout.dim[0].label == ",".join(ri.FARM_TERMS.labels)
+    term = ri.FARM_TERMS.read(message_terms)
     dmf = scenario.economics.tuber_dry_matter_fraction
-    expected = [float(episode), info["yield_value_per_t"] * dmf, info["water_cost_per_mm"], 0.0, info["quota_mm"], 8.0]
-    assert list(term.data) == expected
-    assert 150.0 <= term.data[1] <= 300.0 and 150.0 <= term.data[4] <= 450.0  # the YAML's ranges
+    expected = ri.FarmTerms(episode, info["yield_value_per_t"] * dmf, info["water_cost_per_mm"], 0.0,
+                            info["quota_mm"], 8.0)
+    assert term == expected and list(message_terms.data) == [float(value) for value in expected]
+    assert 150.0 <= term.tuber_price_usd_per_t <= 300.0 and 150.0 <= term.quota_mm <= 450.0  # the YAML's ranges
     # the observation carries the same terms (float32)
-    for column, value in (("tuber_price_usd_per_t", term.data[1]), ("water_cost_usd_per_mm", term.data[2]),
-                          ("quota_remaining_mm", term.data[4]), ("capacity_mm_per_day", 8.0)):
+    for column, value in (("tuber_price_usd_per_t", term.tuber_price_usd_per_t),
+                          ("water_cost_usd_per_mm", term.water_cost_usd_per_mm),
+                          ("quota_remaining_mm", term.quota_mm), ("capacity_mm_per_day", 8.0)):
         assert obs[EXTENDED.index(column)] == np.float32(value), column
     assert summary["reward_unit"] == "USD/ha" and summary["observation_size"] == 29
-    assert summary["farm_terms"] == dict(zip(["tuber_price_usd_per_t", "water_cost_usd_per_mm", "event_cost_usd",
-                                              "quota_mm", "capacity_mm_per_day"], expected[1:]))
+    assert summary["farm_terms"] == {name: value for name, value in expected._asdict().items() if name != "episode"}
 
 
 def test_scenario_changes_at_reset_resize_everything(tmp_path):
@@ -156,7 +158,8 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
             days = 3 + 4 + 16 + 2  # of the four seasons, their reset days included
             last = float(back[-1]["day"])  # the last season's last day: the last PAW and step result published
             ros.spin_until(lambda: len(got["paw"]) >= days and len(got["result"]) >= days and len(got["terms"]) >= 4
-                           and got["paw"][-1].data[0] == last and got["result"][-1].data[1] == last
+                           and ri.PAW_READING.read(got["paw"][-1]).day == last
+                           and ri.FAMILY_STEP_RESULT.read(got["result"][-1]).day == last
                            and sum(1 for m in got["status"] if m.level == DiagnosticStatus.WARN) >= 3,
                            TIMEOUT_S, "every day's PAW and step result, the farm terms and the cut reports")
     finally:
@@ -194,15 +197,16 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
     assert [len(x) for x in labels] == [20] * 3 + [29] * 4 + [29] * 16 + [20] * 2
     assert labels[3] == list(EXTENDED.labels) and labels[0] == labels[-1] == list(PAPER.labels)
     result_labels = [m.layout.dim[0].label for m in got["result"]]
-    assert result_labels[0] == ",".join(ri.STEP_RESULT_LABELS) == result_labels[-1]
-    assert result_labels[3] == ",".join(ri.FAMILY_STEP_RESULT_LABELS) and "reward[USD/ha]" in result_labels[3]
+    assert result_labels[0] == ",".join(ri.STEP_RESULT.labels) == result_labels[-1]
+    assert result_labels[3] == ",".join(ri.FAMILY_STEP_RESULT.labels) and "reward[USD/ha]" in result_labels[3]
 
     # farm terms at each reset: NaN money and no quota for the paper task, the YAML's quota for the tight one
-    terms = [list(m.data) for m in got["terms"]]
-    assert [t[0] for t in terms] == [s[0]["episode"] for s in (paper, tight_run, sensing, back)]
+    terms = [ri.FARM_TERMS.read(m) for m in got["terms"]]
+    assert [t.episode for t in terms] == [s[0]["episode"] for s in (paper, tight_run, sensing, back)]
     paper_terms, tight_terms = terms[0], terms[1]
-    assert all(math.isnan(v) for v in paper_terms[1:4]) and paper_terms[4:] == [math.inf, 100.0]
-    assert tight_terms[3:] == [0.0, 10.0, 8.0]
+    assert all(math.isnan(v) for v in paper_terms[1:4])
+    assert (paper_terms.quota_mm, paper_terms.capacity_mm_per_day) == (math.inf, 100.0)
+    assert tight_terms[3:] == (0.0, 10.0, 8.0)
 
     # cut commands are reported (WARN) with the mm applied and why
     cuts = [ri.status_values(m) | {"level": m.level} for m in got["status"] if m.level == DiagnosticStatus.WARN]
@@ -215,8 +219,8 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
     observed = sensing_offline[:, EXTENDED.index("paw_observed")]
     assert 0 < observed.sum() < len(observed), "the 15 days hold readings and dropouts"
     # the sensing season's PAW messages: after the paper season's 3 and the tight season's 4
-    sensing_paw = [list(m.data) for m in got["paw"]][3 + 4:3 + 4 + 16]
-    assert [int(d) for d, _ in sensing_paw] == list(range(16))
+    sensing_paw = [ri.PAW_READING.read(m) for m in got["paw"]][3 + 4:3 + 4 + 16]
+    assert [reading.day for reading in sensing_paw] == list(range(16))
     for (day, value), obs in zip(sensing_paw, sensing_offline):
         if obs[EXTENDED.index("paw_observed")] == 0.0:
             assert math.isnan(value), day

@@ -54,15 +54,15 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
             ros.node.create_subscription(Float32MultiArray, f"{name}/observation",
                                          lambda m: got["obs"].append(ri.observation_from_message(m)), ri.READER_QOS),
             ros.node.create_subscription(Float64MultiArray, f"{name}/biomass",
-                                         lambda m: got["biomass"].append(list(m.data)), ri.READER_QOS),
+                                         lambda m: got["biomass"].append(ri.BIOMASS_READING.read(m)), ri.READER_QOS),
             ros.node.create_subscription(Float64MultiArray, f"{name}/paw",
-                                         lambda m: got["paw"].append(list(m.data)), ri.READER_QOS),
+                                         lambda m: got["paw"].append(ri.PAW_READING.read(m)), ri.READER_QOS),
             ros.node.create_subscription(Float64MultiArray, f"{name}/weather/today",
-                                         lambda m: got["today"].append(list(m.data)), ri.READER_QOS),
+                                         lambda m: got["today"].append(ri.WEATHER_TODAY.read(m)), ri.READER_QOS),
             ros.node.create_subscription(Float64MultiArray, f"{name}/weather/forecast",
-                                         lambda m: got["forecast"].append(list(m.data)), ri.READER_QOS),
+                                         lambda m: got["forecast"].append(ri.WEATHER_FORECAST.read(m)), ri.READER_QOS),
             ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
-                                         lambda m: got["result"].append(list(m.data)), ri.READER_QOS),
+                                         lambda m: got["result"].append(ri.STEP_RESULT.read(m)), ri.READER_QOS),
             ros.node.create_subscription(Clock, "/clock", lambda m: got["clock"].append(m.clock.sec), ri.CLOCK_QOS),
         ]
         ros.spin_until(lambda: all(s.get_publisher_count() >= 1 for s in subs), 30, "the simulator's topics")
@@ -79,9 +79,9 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
         assert all(got.values()), {key: len(values) for key, values in got.items()}
         # the last warm-up day's messages (some published after the step's answer) have all arrived: forget them
         warm_clock = ri.sim_time(date(2000, 4, 1), last).sec
-        ros.spin_until(lambda: got["clock"][-1] == warm_clock and got["result"][-1][1] == last
-                       and int(got["obs"][-1][ri.OBS_DAY]) == last and got["forecast"][-1][0] == last + 1
-                       and all(got[k][-1][0] == last for k in ("biomass", "paw", "today")), 10, "the warm-up's last day")
+        ros.spin_until(lambda: got["clock"][-1] == warm_clock and got["result"][-1].day == last
+                       and int(got["obs"][-1][ri.OBS_DAY]) == last and got["forecast"][-1].for_day == last + 1
+                       and all(got[k][-1].day == last for k in ("biomass", "paw", "today")), 10, "the warm-up's last day")
         for values in got.values():
             values.clear()
         agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="agent_node",
@@ -107,7 +107,7 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
         by_day = {int(r["day"]): r for r in rows}
 
         # topics: every message names its day and agrees exactly with the observation of that day
-        ros.spin_until(lambda: got["result"] and got["result"][-1][1] == season["days"], 10, "the last day")
+        ros.spin_until(lambda: got["result"] and got["result"][-1].day == season["days"], 10, "the last day")
         observations = {}
         for obs in got["obs"]:
             observations.setdefault(int(obs[ri.OBS_DAY]), []).append(obs)
@@ -121,11 +121,12 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
         for key, index in (("biomass", ri.OBS_BIOMASS), ("paw", ri.OBS_PAW)):
             day, value = got[key][-1]
             assert day == season["days"] and value == float(final[index])
-        assert got["today"][-1] == [float(season["days"])] + final[ri.OBS_TODAY].astype(float).tolist()
-        assert got["forecast"][-1] == [float(season["days"] + 1)] + final[ri.OBS_FORECAST].astype(float).tolist()
+        assert list(got["today"][-1]) == [season["days"]] + final[ri.OBS_TODAY].astype(float).tolist()
+        assert list(got["forecast"][-1]) == [season["days"] + 1] + final[ri.OBS_FORECAST].astype(float).tolist()
         result = got["result"][-1]
-        assert result[0] == episode and result[4] == 1.0 and result[6] == season["yield_t_ha"]
-        days_seen = [r[1] for r in got["result"] if r[0] == episode]
+        assert result.episode == episode and result.terminated and result.yield_t_ha == season["yield_t_ha"]
+        assert result.episode_return == pytest.approx(season["return"], rel=1e-12)
+        days_seen = [r.day for r in got["result"] if r.episode == episode]
         assert days_seen == sorted(days_seen) and len(days_seen) > season["days"] // 2
 
         # /clock in farm time, in day order; a late subscriber (transient local) gets the latest day at once
@@ -330,7 +331,7 @@ def test_command_racing_step_is_applied_exactly_once_to_its_day(shared_sim):
                 ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
                                              lambda m: acks.append(ri.status_values(m)), ri.READER_QOS)
                 ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
-                                             lambda m: current.__setitem__("day", int(m.data[1])), ri.READER_QOS)
+                                             lambda m: current.__setitem__("day", ri.STEP_RESULT.read(m).day), ri.READER_QOS)
                 publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation", ri.COMMAND_QOS)
                 ros.spin_until(lambda: publisher.get_subscription_count() >= 1, 20, "the command subscriber")
                 rng = np.random.default_rng(0)
@@ -445,7 +446,7 @@ def test_free_running_mode_steps_by_itself_and_counts_days_without_a_command(sha
     ros.spin_until(lambda: statuses[-1]["day"] == 2, 10, "the status of day 2")
     assert statuses[-1]["days_without_command"] == 1 and statuses[-1]["level"] == 0, statuses[-1]
     days = []
-    ros.node.create_subscription(Float64MultiArray, f"{name}/step_result", lambda m: days.append(m.data[1]),
+    ros.node.create_subscription(Float64MultiArray, f"{name}/step_result", lambda m: days.append(ri.STEP_RESULT.read(m).day),
                                  ri.READER_QOS)
     try:
         (result,) = set_parameter(ros, name, days_per_second=200.0)
@@ -508,21 +509,21 @@ def test_stepping_commands_step_once_and_only_their_day(shared_sim, ros):
     status_sub = ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
                                               lambda m: statuses.append(ri.status_values(m)), ri.READER_QOS)
     result_sub = ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
-                                              lambda m: results.append(list(m.data)), ri.READER_QOS)
+                                              lambda m: results.append(ri.STEP_RESULT.read(m)), ri.READER_QOS)
     publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation_step", ri.COMMAND_QOS)
     ros.spin_until(lambda: publisher.get_subscription_count() >= 1 and status_sub.get_publisher_count() >= 1
                    and result_sub.get_publisher_count() >= 1, 20, "the simulator's topics")
     for _ in range(5):  # the same stepping command five times
         publisher.publish(ri.irrigation_command(0, 4.0, episode))
     ros.spin_until(lambda: len([s for s in statuses if not s["accepted"]]) >= 4 and results, 10, "the outcome")
-    assert [r[1] for r in results] == [1.0] and results[0][2] == 4.0
+    assert [r.day for r in results] == [1] and results[0].irrigation_mm == 4.0 and results[0].command_sequence > 0
     assert all("past" in s["message"] for s in statuses if not s["accepted"])
     for values in ([1.0, math.nan, float(episode)], [1.0, 150.0, float(episode)], [3.0, 1.0, float(episode)]):
         message = Float64MultiArray()
         message.data = values
         publisher.publish(message)
     ros.spin_until(lambda: len([s for s in statuses if not s["accepted"]]) >= 7, 10, "three more refusals")
-    assert [r[1] for r in results] == [1.0], "no step for a bad command"
+    assert [r.day for r in results] == [1], "no step for a bad command"
     rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == episode]
     assert [(int(r["day"]), float(r["irrigation_mm"])) for r in rows] == [(0, 4.0)]
     client.day = 1

@@ -101,7 +101,7 @@ class SimClient:
         self._status = node.create_subscription(DiagnosticStatus, f"{self.sim}/{ri.IRRIGATION_STATUS_TOPIC}",
                                                 lambda m: self._acks.append(ri.status_values(m)), ri.COMMAND_QOS)
         self._topic_obs: deque[np.ndarray] = deque(maxlen=100)
-        self._results: deque[list] = deque(maxlen=100)
+        self._results: deque[ri.StepResult] = deque(maxlen=100)
         self._obs_sub = self._result_sub = None
         if verify_topics or via == "topic":
             self._obs_sub = node.create_subscription(
@@ -112,7 +112,7 @@ class SimClient:
                                                        ri.COMMAND_QOS)
             self._result_sub = node.create_subscription(
                 Float64MultiArray, f"{self.sim}/{ri.STEP_RESULT_TOPIC}",
-                lambda m: self._results.append(list(m.data)), ri.READER_QOS)
+                lambda m: self._results.append(ri.STEP_RESULT.read(m)), ri.READER_QOS)
         self._parameters: dict = {}
         self.episode = 0
         self.day = 0
@@ -228,19 +228,19 @@ class SimClient:
         self.command(mm)
         self._topic_obs.clear()
         summary = self._trigger(self._step)
-        if summary["episode"] != self.episode or summary["day"] != self.day + 1:
+        result = ri.StepResult.from_summary(summary)
+        if result.episode != self.episode or result.day != self.day + 1:
             raise SimError(f"{self.sim}: expected episode {self.episode} day {self.day + 1}, got episode "
-                           f"{summary['episode']} day {summary['day']} (another client is stepping this simulator)")
-        self._check_applied(self.day, summary["irrigation_mm"], mm)
-        self.day = summary["day"]
-        terminated, truncated = bool(summary["terminated"]), bool(summary["truncated"])
-        self.ended = terminated or truncated
-        return self._observation(summary), float(summary["reward"]), terminated, truncated, summary
+                           f"{result.episode} day {result.day} (another client is stepping this simulator)")
+        self._check_applied(self.day, result.irrigation_mm, mm)
+        self.day = result.day
+        self.ended = result.terminated or result.truncated
+        return self._observation(summary), result.reward, result.terminated, result.truncated, summary
 
     def _step_by_topic(self, mm: float):
         day, episode = self.day, self.episode
         message = self._message
-        message.data = [float(day), mm, float(episode)]
+        ri.IRRIGATION.fill(message, ri.IrrigationCommand(day, mm, episode))
         self._acks.clear()
         self._results.clear()
         self._topic_obs.clear()
@@ -249,7 +249,7 @@ class SimClient:
         def arrived() -> bool:
             if "result" not in found:
                 for r in self._results:
-                    if r[0] == episode and r[1] == day + 1:
+                    if r.episode == episode and r.day == day + 1:
                         found["result"] = r
                         break
             if "obs" not in found:
@@ -275,16 +275,13 @@ class SimClient:
                 if time.monotonic() > deadline:
                     raise ServiceTimeout(f"{self.sim} did not step day {day} within {self.timeout:.1f} s") from None
                 self.retries += 1
-        r, obs = found["result"], found["obs"]
-        self._check_applied(day, r[2], mm)
-        terminated, truncated = r[4] == 1.0, r[5] == 1.0
-        summary = {"episode": episode, "day": day + 1, "irrigation_mm": r[2], "reward": r[3], "return": r[7],
-                   "terminated": terminated, "truncated": truncated, "yield_t_ha": r[6],
-                   "command_sequence": int(r[8])}
+        result, obs = found["result"], found["obs"]
+        self._check_applied(day, result.irrigation_mm, mm)
+        summary = result.summary()
         self.last_response = summary
         self.day = day + 1
-        self.ended = terminated or truncated
-        return obs, float(r[3]), terminated, truncated, summary
+        self.ended = result.terminated or result.truncated
+        return obs, result.reward, result.terminated, result.truncated, summary
 
     def _check_applied(self, day: int, applied: float, mm: float) -> None:
         """SimError unless the day got ``mm``, or less when the season's capacity or quota may cut it."""
@@ -294,7 +291,7 @@ class SimClient:
     def command(self, mm: float) -> dict:
         """Publish today's command and wait until the simulator has accepted it; returns its status."""
         message = self._message
-        message.data = [float(self.day), mm, float(self.episode)]
+        ri.IRRIGATION.fill(message, ri.IrrigationCommand(self.day, mm, self.episode))
         self._acks.clear()
         deadline = time.monotonic() + self.timeout
         while True:
