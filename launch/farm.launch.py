@@ -1,6 +1,6 @@
 """The simulated farm: the simulator node and an agent node that drives the season(s), then both stop.
 
-    ros2 launch crop_sim_ros farm.launch.py [policy:=ppo|refill|best-constant|constant|zero] [seasons:=1]
+    ros2 launch crop_sim_ros farm.launch.py [policy:=ppo|refill|...|budget-rule|agent] [seasons:=1]
                                             [namespace:=/farm1] [log_path:=season.csv] [params_file:=...]
 
 Parameters come from share/crop_sim_ros/config/farm_params.yaml (or params_file); the launch arguments
@@ -21,6 +21,8 @@ from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackageShare
+
+from crop_agent_ros.policies.registry import NODE_POLICIES
 
 
 class AgentFailed(RuntimeError):
@@ -54,7 +56,7 @@ def generate_launch_description():
             "params_file",
             default_value=PathJoinSubstitution([FindPackageShare("crop_sim_ros"), "config", "farm_params.yaml"]),
             description="parameter file of both nodes"),
-        DeclareLaunchArgument("policy", default_value="ppo", description="zero | constant | best-constant | refill | ppo"),
+        DeclareLaunchArgument("policy", default_value="ppo", description=" | ".join(NODE_POLICIES)),
         DeclareLaunchArgument("seasons", default_value="1", description="seasons the agent grows (1..100000)"),
         DeclareLaunchArgument("namespace", default_value="", description="namespace of both nodes ('' = none)"),
         DeclareLaunchArgument("log_path", default_value="",

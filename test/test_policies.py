@@ -4,12 +4,15 @@ policy file loader and the evaluation table (fast: no training)."""
 import json
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from crop_agent_ros.policies import (ConstantPolicy, Policy, RefillPolicy, ZeroPolicy, make_policy)
 from crop_agent_ros.policies.base import (OBS_SIZE, SeasonContext)
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 # The observation below: TMAX 25, TMIN 10 degC, SRAD 25 MJ/m2, VAP 12 hPa, wind 2 m/s on day 50 after an
@@ -286,3 +289,23 @@ def test_demand_mode_can_stop_irrigating():
     from crop_agent_ros.policies.sb3 import action_to_mm
 
     assert action_to_mm(np.array([[-1.0]], dtype=np.float32), observation(paw=10.0)[None], "demand")[0] == 0
+
+
+def test_one_registry_names_every_policy_and_the_node_runs_its_kinds():
+    from crop_agent_ros.policies import NODE_POLICIES, POLICY_KINDS, PolicyArguments, build_policy
+    from crop_agent_ros.ros.agent import PARAMETERS
+
+    assert set(NODE_POLICIES) == {name for name, kind in POLICY_KINDS.items() if kind.node}
+    assert "oracle" not in NODE_POLICIES and {"budget-rule", "agent", "ppo"} <= set(NODE_POLICIES)
+    # the node's parameter descriptor and the launch file's argument list the registry's node kinds
+    assert PARAMETERS["policy"][1].additional_constraints == " | ".join(NODE_POLICIES)
+    assert "description=\" | \".join(NODE_POLICIES)" in (ROOT / "launch" / "farm.launch.py").read_text()
+    assert build_policy("constant", PolicyArguments(constant_mm=3.5)).act(observation()) == 3.5
+    assert make_policy("constant").act(observation()) == 10.0  # the paper's baseline
+    with pytest.raises(ValueError, match="unknown policy 'oracle'; known: zero, constant"):
+        build_policy("oracle", node=True)
+    with pytest.raises(ValueError, match="budget-rule needs a family task"):
+        build_policy("budget-rule")
+    with pytest.raises(ValueError, match="agent needs policy_file"):
+        make_policy("agent")
+    assert build_policy("budget-rule", PolicyArguments(task="benton-quota")).name

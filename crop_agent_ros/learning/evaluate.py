@@ -74,16 +74,15 @@ def parse_seeds(text: str) -> list[int]:
 
 
 def make_policies(names: list[str], ppo_path=None) -> dict:
-    """The policies of ``names`` (make_policy's names, and ``oracle``), built before any season runs;
-    UsageError names a policy that is unknown, or whose file is missing or not a policy for this task."""
+    """The policies of ``names`` (make_policy's short names), built before any season runs; UsageError names a
+    policy that is unknown, or whose file is missing or not a policy for this task."""
     from ..policies import make_policy
-    from ..policies.oracle import OraclePolicy
     if not names:
         raise UsageError("--policies: no policy named")
     policies = {}
     for name in names:
         with user_input(f"--policies {name}"):
-            policies[name] = OraclePolicy() if name == "oracle" else make_policy(name, ppo_path=ppo_path)
+            policies[name] = make_policy(name, ppo_path=ppo_path)
     return policies
 
 

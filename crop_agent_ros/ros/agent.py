@@ -15,7 +15,7 @@ from std_msgs.msg import Float32MultiArray, Float64MultiArray
 
 from crop_sim_ros import ros_interface as ri
 
-from ..policies import NODE_POLICIES
+from ..policies import NODE_POLICIES, PolicyArguments, build_policy
 from .sim_client import UNCHANGED, SimClient, scenario_layout
 
 NODE_NAME = "crop_agent"
@@ -60,32 +60,11 @@ PARAMETERS = {
 
 def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.0, task: str = "",
                       climate: str = ""):
-    """The policy named ``kind``: from :mod:`crop_agent_ros.policies`, ``budget-rule`` (the water-budget rule
-    tuned for the family task ``task``) or ``agent`` (a family agent's policy file; ``climate``: the site's, for
-    an agent with a climate outlook). ValueError for an unknown name or a missing parameter,
-    FileNotFoundError for a missing policy or rule file."""
-    from ..policies import ConstantPolicy, make_policy  # noqa: PLC0415
-
-    if kind not in NODE_POLICIES:
-        raise ValueError(f"unknown policy {kind!r}; known: {', '.join(NODE_POLICIES)}")
-    if kind == "constant":
-        return ConstantPolicy(constant_mm)
-    if kind == "ppo":
-        return make_policy("ppo", ppo_path=policy_file or None)
-    if kind == "budget-rule":
-        from ..policies.family_tuning import tuned_rule  # noqa: PLC0415
-        return tuned_rule(task)
-    if kind == "agent":
-        if not policy_file:
-            raise ValueError("policy agent needs policy_file:=<model.zip of a family agent>")
-        from ..learning.agent import LearnedPolicy  # noqa: PLC0415
-        agent = LearnedPolicy(policy_file)
-        if climate:
-            from ..policies.outlook import normal_et0_mm  # noqa: PLC0415
-            normal_et0_mm(climate)  # an unknown climate is refused at start, by name
-            agent.site_climate = climate
-        return agent
-    return make_policy(kind)
+    """The node policy ``kind`` (:data:`~crop_agent_ros.policies.NODE_POLICIES`, see
+    :mod:`crop_agent_ros.policies.registry`) with the node's parameters. ValueError for an unknown kind or a
+    missing parameter, FileNotFoundError for a missing policy or rule file."""
+    return build_policy(kind, PolicyArguments(policy_file=policy_file, constant_mm=constant_mm, task=task,
+                                              climate=climate), node=True)
 
 
 def check_observation_size(policy, size: int, where: str) -> None:
