@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import tempfile
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -100,10 +101,32 @@ def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_
     # the family agent's options on the paper's task (no --task) are refused, not ignored
     from crop_sim_ros.usage import UsageError
     for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
-                        (["--imitate", "x.npz"], "--imitate"), (["--outlook"], "--outlook")):
+                        (["--imitate", "x.npz"], "--imitate"), (["--outlook"], "--outlook"),
+                        (["--training-seasons", "5000"], "--training-seasons")):
         args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
         with pytest.raises(UsageError, match=f"{flag}: with --task only"):
             train.run(args)
+
+
+def test_a_larger_training_pool_extends_the_tasks_own_pool(tmp_path):
+    """--training-seasons N: N seasons drawn by the task's generator with its seed (the pool is drawn at once, so
+    it is another draw than the task's 1,000); refused for a mixture of pools and outside 1..10,000."""
+    from crop_agent_ros.learning.train_task import training_pool
+    from crop_sim_ros.task import IrrigationVectorEnv, get_scenario
+    from crop_sim_ros.usage import UsageError
+    task = get_scenario("benton-quota")
+    larger = training_pool(task, 1500)
+    assert larger.name == task.name and larger.n_seasons == 1500 and task.n_seasons == 1000
+    assert training_pool(task, None) is task
+    assert larger.weather == replace(task.weather, n_seasons=1500)
+    IrrigationVectorEnv(2, larger).reset(seed=1, options={"season": 1499})  # beyond the task's own pool
+    with pytest.raises(UsageError, match="--training-seasons: 'climates-quota' mixes"):
+        training_pool(get_scenario("climates-quota"), 2000)
+    for count in (0, 10_001):
+        with pytest.raises(UsageError, match=f"--training-seasons {count}: must be in 1..10,000"):
+            training_pool(task, count)
+    summary, out = _train(tmp_path, "--training-seasons", "40")
+    assert json.loads((out / "model.json").read_text())["training_seasons"] == 40
 
 
 def _sensing_season(fields: int = 6, days: int = 120):

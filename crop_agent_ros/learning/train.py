@@ -404,6 +404,7 @@ def run(args) -> int:
     family_only = [flag for flag, given in (
         ("--imitate", getattr(args, "imitate", None)), ("--paw-filter", getattr(args, "paw_filter", False)),
         ("--outlook", getattr(args, "outlook", False)),
+        ("--training-seasons", getattr(args, "training_seasons", None) is not None),
         ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
         ("--algorithm recurrent-ppo", getattr(args, "algorithm", "ppo") != "ppo")) if given]
     if family_only:

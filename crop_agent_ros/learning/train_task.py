@@ -25,6 +25,7 @@ import csv
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -50,12 +51,31 @@ def add_task_arguments(parser) -> None:
                         help="with --task: the network also sees a climate outlook, the quota left against the "
                              "demand the field's climate normally brings in the next 60 days and that demand's "
                              "trend (crop_agent_ros.policies.outlook; a labelled feature)")
+    parser.add_argument("--training-seasons", type=int, default=None, metavar="N",
+                        help="with --task on a generated task: train on a pool of N seasons drawn by the task's "
+                             "generator (default: the task's own pool of 1,000)")
     parser.add_argument("--imitate", nargs="+", default=None, metavar="GLOB",
                         help="with --task: first fit the policy to these demonstrations of the causal MPC "
                              "(`crop-sim demonstrate`; behaviour cloning), then PPO on the reward (a variant)")
     parser.add_argument("--imitation-epochs", type=int, default=100, help="epochs of behaviour cloning")
     parser.add_argument("--imitation-keep-best", action="store_true",
                         help="end the cloning with the epoch of least held-out error, not the last (early stopping)")
+
+
+def training_pool(scenario, n_seasons: int | None):
+    """``scenario`` with a pool of ``n_seasons`` seasons drawn by its generator with its seed (the pool is drawn at
+    once, so it is another draw than the scenario's own pool); None: as it is. UsageError for a mixture or an
+    out-of-range count. Validation and evaluation seasons use other seeds either way."""
+    if n_seasons is None:
+        return scenario
+    from crop_sim_ros.task.scenario import MAX_GENERATED_SEASONS
+    from crop_sim_ros.usage import UsageError
+    if scenario.weather.kind != "generator":
+        raise UsageError(f"--training-seasons: {scenario.name!r} mixes other scenarios' pools; give it for a "
+                         "task on one generator")
+    if not 1 <= n_seasons <= MAX_GENERATED_SEASONS:
+        raise UsageError(f"--training-seasons {n_seasons}: must be in 1..{MAX_GENERATED_SEASONS:,}")
+    return replace(scenario, weather=replace(scenario.weather, n_seasons=n_seasons))
 
 
 def fit_scaler(scenario, seed: int, seasons: int = 64, demonstrations: np.ndarray | None = None) -> ObservationScaler:
@@ -173,6 +193,7 @@ def train_task(args) -> dict:
     if scenario.weather.kind not in TRAINING_KINDS:
         raise SystemExit(f"crop-sim train: refusing to train on {scenario.name!r}: training uses generated seasons "
                          "only (real seasons and the held-out climate are for evaluation)")
+    scenario = training_pool(scenario, getattr(args, "training_seasons", None))
     out = Path(args.out) if args.out else Path("runs") / f"{args.task}-{args.algorithm}-s{args.seed}"
     out.mkdir(parents=True, exist_ok=True)
     params = core.task_params(scenario)
@@ -249,7 +270,7 @@ def train_task(args) -> dict:
     tuned_rule_return = (None if rule is None else float(run_episodes(
         tuned_rule(scenario.name), validation, seasons, seed=1000, terms=terms).episode_return.mean()))
     config = {"task": scenario.name, "algorithm": args.algorithm, "history": args.history, "seed": args.seed,
-              "timesteps": args.timesteps, "n_envs": args.n_envs, "net_arch": net_arch, "action_kind": action_kind,
+              "timesteps": args.timesteps, "training_seasons": scenario.n_seasons, "n_envs": args.n_envs, "net_arch": net_arch, "action_kind": action_kind,
               "action": (f"a in [-1, 1] -> (a + 1) / 2 x {ACTION_SCALE_MM:g} mm" if rule is None else
                          f"a in [-1, 1] -> clip(the rule's mm + a x {RESIDUAL_SPAN_MM:g} mm, 0, {ACTION_SCALE_MM:g} mm); "
                          f"the network also sees the rule's mm / {RESIDUAL_SPAN_MM:g}"),
