@@ -102,7 +102,7 @@ def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_
     from crop_sim_ros.usage import UsageError
     for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
                         (["--imitate", "x.npz"], "--imitate"), (["--outlook"], "--outlook"),
-                        (["--training-seasons", "5000"], "--training-seasons")):
+                        (["--training-seasons", "5000"], "--training-seasons"), (["--sde", "0"], "--sde")):
         args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
         with pytest.raises(UsageError, match=f"{flag}: with --task only"):
             train.run(args)
@@ -127,6 +127,24 @@ def test_a_larger_training_pool_extends_the_tasks_own_pool(tmp_path):
             training_pool(task, count)
     summary, out = _train(tmp_path, "--training-seasons", "40")
     assert json.loads((out / "model.json").read_text())["training_seasons"] == 40
+
+
+def test_state_dependent_exploration_is_recorded_and_its_policy_acts_deterministically(tmp_path):
+    """--sde DAYS: gSDE with its noise weights redrawn every DAYS days (0: once per rollout); the saved policy's
+    actions are its mean, so two evaluations agree; a negative count is refused."""
+    from crop_agent_ros.learning.train_task import exploration
+    from crop_agent_ros.policies.rollout import run_episodes
+    from crop_sim_ros.usage import UsageError
+    assert exploration(None) == {} and exploration(0) == {"use_sde": True, "sde_sample_freq": -1}
+    assert exploration(8) == {"use_sde": True, "sde_sample_freq": 8}
+    with pytest.raises(UsageError, match="--sde -1: days between noise draws"):
+        exploration(-1)
+    summary, out = _train(tmp_path, "--sde", "4")
+    hyper = json.loads((out / "model.json").read_text())["hyper_parameters"]
+    assert hyper["use_sde"] is True and hyper["sde_sample_freq"] == 4
+    policy = LearnedPolicy(out / "model.zip")
+    first, second = (run_episodes(policy, "benton-sensing", np.arange(2), seed=0).episode_return for _ in range(2))
+    np.testing.assert_array_equal(first, second)
 
 
 def _sensing_season(fields: int = 6, days: int = 120):

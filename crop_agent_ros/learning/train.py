@@ -405,6 +405,7 @@ def run(args) -> int:
         ("--imitate", getattr(args, "imitate", None)), ("--paw-filter", getattr(args, "paw_filter", False)),
         ("--outlook", getattr(args, "outlook", False)),
         ("--training-seasons", getattr(args, "training_seasons", None) is not None),
+        ("--sde", getattr(args, "sde", None) is not None),
         ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
         ("--algorithm recurrent-ppo", getattr(args, "algorithm", "ppo") != "ppo")) if given]
     if family_only:

@@ -51,6 +51,10 @@ def add_task_arguments(parser) -> None:
                         help="with --task: the network also sees a climate outlook, the quota left against the "
                              "demand the field's climate normally brings in the next 60 days and that demand's "
                              "trend (crop_agent_ros.policies.outlook; a labelled feature)")
+    parser.add_argument("--sde", type=int, default=None, metavar="DAYS",
+                        help="with --task: generalized state-dependent exploration (gSDE, Raffin et al. 2021) "
+                             "instead of independent daily noise: the exploration is a function of the observation "
+                             "whose weights are redrawn every DAYS days of each field (0: once per rollout)")
     parser.add_argument("--training-seasons", type=int, default=None, metavar="N",
                         help="with --task on a generated task: train on a pool of N seasons drawn by the task's "
                              "generator (default: the task's own pool of 1,000)")
@@ -60,6 +64,17 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--imitation-epochs", type=int, default=100, help="epochs of behaviour cloning")
     parser.add_argument("--imitation-keep-best", action="store_true",
                         help="end the cloning with the epoch of least held-out error, not the last (early stopping)")
+
+
+def exploration(sde_days: int | None) -> dict:
+    """SB3's exploration arguments: independent Gaussian noise each day (None), or gSDE with its noise weights
+    redrawn every ``sde_days`` steps (0: at each rollout's start; SB3's -1). UsageError for a negative count."""
+    if sde_days is None:
+        return {}
+    if sde_days < 0:
+        from crop_sim_ros.usage import UsageError
+        raise UsageError(f"--sde {sde_days}: days between noise draws, 0 (once per rollout) or more")
+    return {"use_sde": True, "sde_sample_freq": sde_days if sde_days > 0 else -1}
 
 
 def training_pool(scenario, n_seasons: int | None):
@@ -229,7 +244,8 @@ def train_task(args) -> dict:
     lr0, lr1 = args.learning_rate, args.final_learning_rate
     common = dict(learning_rate=lambda progress: lr1 + (lr0 - lr1) * progress, n_steps=args.n_steps,
                   batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma, gae_lambda=args.gae_lambda,
-                  clip_range=args.clip_range, ent_coef=args.ent_coef, seed=args.seed, device="cpu", verbose=0)
+                  clip_range=args.clip_range, ent_coef=args.ent_coef, seed=args.seed, device="cpu", verbose=0,
+                  **exploration(getattr(args, "sde", None)))
     if args.algorithm == "ppo":
         from stable_baselines3 import PPO
         model = PPO("MlpPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init},
@@ -280,9 +296,10 @@ def train_task(args) -> dict:
               **({} if outlook is None else {"outlook": outlook.record()}),
               "scaler": {"mean": list(scaler.mean), "std": list(scaler.std)},
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",
-              "hyper_parameters": {k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "n_steps",
-                                                                 "batch_size", "n_epochs", "gamma", "gae_lambda",
-                                                                 "clip_range", "ent_coef", "log_std_init")}}
+              "hyper_parameters": {**{k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "n_steps",
+                                                                    "batch_size", "n_epochs", "gamma", "gae_lambda",
+                                                                    "clip_range", "ent_coef", "log_std_init")},
+                                   **exploration(getattr(args, "sde", None))}}
 
     def save(model_, name: str, at: int) -> Path:
         path = out / f"{name}.zip"
