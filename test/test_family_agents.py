@@ -102,7 +102,8 @@ def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_
     from crop_sim_ros.usage import UsageError
     for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
                         (["--imitate", "x.npz"], "--imitate"), (["--outlook"], "--outlook"),
-                        (["--training-seasons", "5000"], "--training-seasons"), (["--sde", "0"], "--sde")):
+                        (["--training-seasons", "5000"], "--training-seasons"), (["--sde", "0"], "--sde"),
+                        (["--critic-warmup", "100"], "--critic-warmup")):
         args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
         with pytest.raises(UsageError, match=f"{flag}: with --task only"):
             train.run(args)
@@ -145,6 +146,32 @@ def test_state_dependent_exploration_is_recorded_and_its_policy_acts_determinist
     policy = LearnedPolicy(out / "model.zip")
     first, second = (run_episodes(policy, "benton-sensing", np.arange(2), seed=0).episode_return for _ in range(2))
     np.testing.assert_array_equal(first, second)
+
+
+def test_a_critic_warmup_moves_only_the_value_network(tmp_path):
+    """--critic-warmup STEPS: PPO's updates inside frozen_actor change the value network and leave the policy (and
+    its exploration scale) exactly as it was; afterwards every parameter learns again."""
+    import torch
+    from stable_baselines3 import PPO
+    from crop_agent_ros.learning.train_task import frozen_actor
+    model = PPO("MlpPolicy", "Pendulum-v1", n_steps=64, batch_size=32, n_epochs=2, seed=0, device="cpu",
+                policy_kwargs={"net_arch": [8]})
+    before = {k: v.clone() for k, v in model.policy.state_dict().items()}
+    with frozen_actor(model.policy):
+        model.learn(128)
+    after = model.policy.state_dict()
+    actor = [k for k in before if k.startswith(("mlp_extractor.policy_net", "action_net", "log_std"))]
+    critic = [k for k in before if k.startswith(("mlp_extractor.value_net", "value_net"))]
+    assert actor and critic
+    assert all(torch.equal(before[k], after[k]) for k in actor)
+    assert any(not torch.equal(before[k], after[k]) for k in critic)
+    assert all(p.requires_grad for p in model.policy.parameters())
+    summary, out = _train(tmp_path, "--critic-warmup", "256")
+    assert json.loads((out / "model.json").read_text())["critic_warmup_steps"] == 256
+    assert summary["steps_run"] >= 512
+    from crop_sim_ros.usage import UsageError
+    with pytest.raises(UsageError, match="--critic-warmup 512: steps in 0..--timesteps"):
+        _train(tmp_path, "--critic-warmup", "512")
 
 
 def _sensing_season(fields: int = 6, days: int = 120):

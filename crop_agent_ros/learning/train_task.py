@@ -20,6 +20,7 @@ the run's policy (``model.zip`` + ``model.json``: the checkpoint with the best v
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import csv
 import json
@@ -55,6 +56,9 @@ def add_task_arguments(parser) -> None:
                         help="with --task: generalized state-dependent exploration (gSDE, Raffin et al. 2021) "
                              "instead of independent daily noise: the exploration is a function of the observation "
                              "whose weights are redrawn every DAYS days of each field (0: once per rollout)")
+    parser.add_argument("--critic-warmup", type=int, default=0, metavar="STEPS",
+                        help="with --task: for the first STEPS steps only the value network learns (the policy "
+                             "acts, unchanged): a critic fitted to a cloned policy before PPO moves it")
     parser.add_argument("--training-seasons", type=int, default=None, metavar="N",
                         help="with --task on a generated task: train on a pool of N seasons drawn by the task's "
                              "generator (default: the task's own pool of 1,000)")
@@ -64,6 +68,22 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--imitation-epochs", type=int, default=100, help="epochs of behaviour cloning")
     parser.add_argument("--imitation-keep-best", action="store_true",
                         help="end the cloning with the epoch of least held-out error, not the last (early stopping)")
+
+
+@contextlib.contextmanager
+def frozen_actor(policy):
+    """Inside: the policy network, its action layer and its exploration scale take no gradient (the value network
+    still learns: PPO's step leaves parameters without a gradient as they are)."""
+    actor = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters(), policy.log_std]
+    if getattr(policy, "lstm_actor", None) is not None:  # RecurrentPPO's actor memory
+        actor += list(policy.lstm_actor.parameters())
+    for parameter in actor:
+        parameter.requires_grad_(False)
+    try:
+        yield
+    finally:
+        for parameter in actor:
+            parameter.requires_grad_(True)
 
 
 def exploration(sde_days: int | None) -> dict:
@@ -277,6 +297,10 @@ def train_task(args) -> dict:
         imitation = clone(model, interface, demonstrations, args.imitation_epochs,
                           args.seed, after_epoch=keep_early, keep_best=args.imitation_keep_best)
         imitation["early_model"] = f"after {early_epoch} of {args.imitation_epochs} behaviour-cloning epochs"
+    warmup = getattr(args, "critic_warmup", 0)
+    if not 0 <= warmup < args.timesteps:
+        from crop_sim_ros.usage import UsageError
+        raise UsageError(f"--critic-warmup {warmup}: steps in 0..--timesteps ({args.timesteps}) - 1")
     validation = validation_scenario(scenario, args.validation_seasons, args.seed)
     seasons = np.arange(args.validation_seasons)
     terms = draw_terms(validation, seasons, 1234)
@@ -286,7 +310,8 @@ def train_task(args) -> dict:
     tuned_rule_return = (None if rule is None else float(run_episodes(
         tuned_rule(scenario.name), validation, seasons, seed=1000, terms=terms).episode_return.mean()))
     config = {"task": scenario.name, "algorithm": args.algorithm, "history": args.history, "seed": args.seed,
-              "timesteps": args.timesteps, "training_seasons": scenario.n_seasons, "n_envs": args.n_envs, "net_arch": net_arch, "action_kind": action_kind,
+              "timesteps": args.timesteps, "training_seasons": scenario.n_seasons, "n_envs": args.n_envs,
+              "critic_warmup_steps": warmup, "net_arch": net_arch, "action_kind": action_kind,
               "action": (f"a in [-1, 1] -> (a + 1) / 2 x {ACTION_SCALE_MM:g} mm" if rule is None else
                          f"a in [-1, 1] -> clip(the rule's mm + a x {RESIDUAL_SPAN_MM:g} mm, 0, {ACTION_SCALE_MM:g} mm); "
                          f"the network also sees the rule's mm / {RESIDUAL_SPAN_MM:g}"),
@@ -324,8 +349,9 @@ def train_task(args) -> dict:
             self.started = None
 
         def _on_training_start(self) -> None:
-            self.started = time.perf_counter()
-            print(f"training starts {self.started - launched:.1f} s after launch", file=sys.stderr, flush=True)
+            if self.started is None:  # (a critic warm-up trains in two calls)
+                self.started = time.perf_counter()
+                print(f"training starts {self.started - launched:.1f} s after launch", file=sys.stderr, flush=True)
 
         def _on_step(self) -> bool:
             if not self.early_saved and self.num_timesteps >= early_at:
@@ -352,7 +378,12 @@ def train_task(args) -> dict:
                   file=sys.stderr, flush=True)
 
     callback = Curve()
-    model.learn(total_timesteps=args.timesteps, callback=callback, progress_bar=not args.no_progress)
+    if warmup:
+        with frozen_actor(model.policy):
+            model.learn(total_timesteps=warmup, callback=callback, progress_bar=not args.no_progress)
+    # (continuing: the learning-rate schedule runs on over the whole --timesteps)
+    model.learn(total_timesteps=args.timesteps - model.num_timesteps, callback=callback,
+                progress_bar=not args.no_progress, reset_num_timesteps=not warmup)
     training_s = time.perf_counter() - callback.started
     callback.evaluate()
     save(model, "final_model", model.num_timesteps)
