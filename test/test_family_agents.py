@@ -103,7 +103,7 @@ def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_
     for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
                         (["--imitate", "x.npz"], "--imitate"), (["--outlook"], "--outlook"),
                         (["--training-seasons", "5000"], "--training-seasons"), (["--sde", "0"], "--sde"),
-                        (["--critic-warmup", "100"], "--critic-warmup")):
+                        (["--critic-warmup", "100"], "--critic-warmup"), (["--log-std-final", "-4"], "--log-std-final")):
         args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
         with pytest.raises(UsageError, match=f"{flag}: with --task only"):
             train.run(args)
@@ -172,6 +172,25 @@ def test_a_critic_warmup_moves_only_the_value_network(tmp_path):
     from crop_sim_ros.usage import UsageError
     with pytest.raises(UsageError, match="--critic-warmup 512: steps in 0..--timesteps"):
         _train(tmp_path, "--critic-warmup", "512")
+
+
+def test_an_annealed_exploration_follows_its_schedule_and_is_not_learned(tmp_path):
+    """--log-std-final: the log std is set at each rollout's start on the line from --log-std-init to the final
+    value (4 rollouts of 256 steps: -2, -2.5, -3, -3.5), never by the gradient; recorded in the policy file."""
+    import io
+    import zipfile
+    import torch
+
+    def log_std(path):
+        with zipfile.ZipFile(path) as archive:
+            return torch.load(io.BytesIO(archive.read("policy.pth")), weights_only=False)["log_std"]
+
+    summary, out = _train(tmp_path, "--sde", "0", "--log-std-init", "-2", "--log-std-final", "-4",
+                          "--timesteps", "1024")
+    assert json.loads((out / "model.json").read_text())["log_std_final"] == -4.0
+    assert torch.all(log_std(out / "final_model.zip") == -3.5)
+    checkpoints = sorted(out.glob("checkpoint_*.zip"))
+    assert torch.all(log_std(checkpoints[0]) == -2.0)
 
 
 def _sensing_season(fields: int = 6, days: int = 120):

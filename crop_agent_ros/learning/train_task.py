@@ -59,6 +59,10 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--critic-warmup", type=int, default=0, metavar="STEPS",
                         help="with --task: for the first STEPS steps only the value network learns (the policy "
                              "acts, unchanged): a critic fitted to a cloned policy before PPO moves it")
+    parser.add_argument("--log-std-final", type=float, default=None, metavar="LOG_STD",
+                        help="with --task: the exploration's log std is not learned but moves linearly from "
+                             "--log-std-init to LOG_STD over the training, so that what PPO improves (the return "
+                             "of the noisy policy) approaches what is evaluated (its mean action)")
     parser.add_argument("--training-seasons", type=int, default=None, metavar="N",
                         help="with --task on a generated task: train on a pool of N seasons drawn by the task's "
                              "generator (default: the task's own pool of 1,000)")
@@ -77,13 +81,24 @@ def frozen_actor(policy):
     actor = [*policy.mlp_extractor.policy_net.parameters(), *policy.action_net.parameters(), policy.log_std]
     if getattr(policy, "lstm_actor", None) is not None:  # RecurrentPPO's actor memory
         actor += list(policy.lstm_actor.parameters())
+    learning = [parameter.requires_grad for parameter in actor]
     for parameter in actor:
         parameter.requires_grad_(False)
     try:
         yield
     finally:
-        for parameter in actor:
-            parameter.requires_grad_(True)
+        for parameter, was in zip(actor, learning):
+            parameter.requires_grad_(was)
+
+
+def set_exploration(model, log_std: float) -> None:
+    """The policy's exploration log std (every action dimension, every gSDE weight) is ``log_std`` from now on; a
+    gSDE policy draws its noise weights again with it."""
+    import torch
+    with torch.no_grad():
+        model.policy.log_std.fill_(log_std)
+    if model.use_sde:
+        model.policy.reset_noise(model.n_envs)
 
 
 def exploration(sde_days: int | None) -> dict:
@@ -297,6 +312,9 @@ def train_task(args) -> dict:
         imitation = clone(model, interface, demonstrations, args.imitation_epochs,
                           args.seed, after_epoch=keep_early, keep_best=args.imitation_keep_best)
         imitation["early_model"] = f"after {early_epoch} of {args.imitation_epochs} behaviour-cloning epochs"
+    log_std_final = getattr(args, "log_std_final", None)
+    if log_std_final is not None:
+        model.policy.log_std.requires_grad_(False)  # set by the schedule at each rollout (Curve)
     warmup = getattr(args, "critic_warmup", 0)
     if not 0 <= warmup < args.timesteps:
         from crop_sim_ros.usage import UsageError
@@ -311,7 +329,7 @@ def train_task(args) -> dict:
         tuned_rule(scenario.name), validation, seasons, seed=1000, terms=terms).episode_return.mean()))
     config = {"task": scenario.name, "algorithm": args.algorithm, "history": args.history, "seed": args.seed,
               "timesteps": args.timesteps, "training_seasons": scenario.n_seasons, "n_envs": args.n_envs,
-              "critic_warmup_steps": warmup, "net_arch": net_arch, "action_kind": action_kind,
+              "critic_warmup_steps": warmup, "log_std_final": log_std_final, "net_arch": net_arch, "action_kind": action_kind,
               "action": (f"a in [-1, 1] -> (a + 1) / 2 x {ACTION_SCALE_MM:g} mm" if rule is None else
                          f"a in [-1, 1] -> clip(the rule's mm + a x {RESIDUAL_SPAN_MM:g} mm, 0, {ACTION_SCALE_MM:g} mm); "
                          f"the network also sees the rule's mm / {RESIDUAL_SPAN_MM:g}"),
@@ -352,6 +370,11 @@ def train_task(args) -> dict:
             if self.started is None:  # (a critic warm-up trains in two calls)
                 self.started = time.perf_counter()
                 print(f"training starts {self.started - launched:.1f} s after launch", file=sys.stderr, flush=True)
+
+        def _on_rollout_start(self) -> None:
+            if log_std_final is not None:
+                done = min(1.0, self.num_timesteps / args.timesteps)
+                set_exploration(self.model, args.log_std_init + (log_std_final - args.log_std_init) * done)
 
         def _on_step(self) -> bool:
             if not self.early_saved and self.num_timesteps >= early_at:
