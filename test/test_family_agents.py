@@ -103,7 +103,8 @@ def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_
     for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
                         (["--imitate", "x.npz"], "--imitate"), (["--outlook"], "--outlook"),
                         (["--training-seasons", "5000"], "--training-seasons"), (["--sde", "0"], "--sde"),
-                        (["--critic-warmup", "100"], "--critic-warmup"), (["--log-std-final", "-4"], "--log-std-final")):
+                        (["--critic-warmup", "100"], "--critic-warmup"), (["--log-std-final", "-4"], "--log-std-final"),
+                        (["--algorithm", "td3"], "--algorithm td3"), (["--gradient-steps", "4"], "--gradient-steps")):
         args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
         with pytest.raises(UsageError, match=f"{flag}: with --task only"):
             train.run(args)
@@ -191,6 +192,25 @@ def test_an_annealed_exploration_follows_its_schedule_and_is_not_learned(tmp_pat
     assert torch.all(log_std(out / "final_model.zip") == -3.5)
     checkpoints = sorted(out.glob("checkpoint_*.zip"))
     assert torch.all(log_std(checkpoints[0]) == -2.0)
+
+
+def test_an_off_policy_td3_agent_trains_loads_and_refuses_ppo_options(tmp_path):
+    """--algorithm td3: a deterministic policy with its critic; the saved policy loads as a family agent and acts
+    the same twice; PPO's options are refused for it, and its own options for PPO."""
+    from crop_agent_ros.policies.rollout import run_episodes
+    from crop_sim_ros.usage import UsageError
+    summary, out = _train(tmp_path, "--algorithm", "td3", "--gradient-steps", "2", "--action-noise", "0.1")
+    config = json.loads((out / "model.json").read_text())
+    assert config["algorithm"] == "td3" and summary["steps_run"] >= 512
+    assert config["hyper_parameters"]["action_noise"] == 0.1 and config["hyper_parameters"]["gradient_steps"] == 2
+    assert "gae_lambda" not in config["hyper_parameters"]
+    policy = LearnedPolicy(out / "model.zip")
+    first, second = (run_episodes(policy, "benton-sensing", np.arange(2), seed=0).episode_return for _ in range(2))
+    np.testing.assert_array_equal(first, second)
+    with pytest.raises(UsageError, match="--sde, --critic-warmup: for PPO only, not --algorithm td3"):
+        _train(tmp_path, "--algorithm", "td3", "--sde", "0", "--critic-warmup", "100")
+    with pytest.raises(UsageError, match="--action-noise: for --algorithm td3 only"):
+        _train(tmp_path, "--action-noise", "0.3")
 
 
 def _sensing_season(fields: int = 6, days: int = 120):

@@ -23,7 +23,8 @@ filter knowing the sensor's stated error), as (estimate / capacity) x 2 - 1. On 
 noise, a third of the readings missing) its error is about a fifth of the readings'.
 
 The recurrent agent (sb3-contrib RecurrentPPO, an LSTM policy) sees one scaled observation per day and
-carries its memory in the LSTM state. What the network sees and what its action does is one object,
+carries its memory in the LSTM state. The off-policy agent (Stable-Baselines3 TD3: a deterministic policy
+improved along its critic's action gradient, exploring with Gaussian noise on the action) sees and acts as PPO's. What the network sees and what its action does is one object,
 :class:`AgentInterface`, used alike by training and by the loaded policy. Both are
 :class:`~crop_agent_ros.policies.base.BasePolicy` objects once loaded (:class:`LearnedPolicy`): ``reset`` clears
 the memory (and the rule's checkbook), ``act`` takes (N, 29) observations.
@@ -48,9 +49,21 @@ ACTION_SCALE_MM = 25.0  # a = 1 asks 25 mm: above any day's need (ET0 <= ~11 mm/
 # rule action (the rule never asks more than the pivot's 8 mm/d) or to add more than a day of a pivot's water,
 # while a unit of the action stays a few mm (the exploration noise, exp(log_std_init) x 10 mm, stays small).
 RESIDUAL_SPAN_MM = 10.0
-ALGORITHMS = ("ppo", "recurrent-ppo")
+ALGORITHMS = ("ppo", "recurrent-ppo", "td3")
 ACTION_KINDS = ("mm", "residual")
 DAY = EXTENDED.index("days_since_sowing")
+
+
+def algorithm_class(algorithm: str):
+    """The Stable-Baselines3 class of ``algorithm`` (one of ALGORITHMS), imported on demand."""
+    if algorithm == "ppo":
+        from stable_baselines3 import PPO
+        return PPO
+    if algorithm == "td3":
+        from stable_baselines3 import TD3
+        return TD3
+    from sb3_contrib import RecurrentPPO
+    return RecurrentPPO
 
 
 def action_to_mm(action: np.ndarray) -> np.ndarray:
@@ -261,12 +274,7 @@ class LearnedPolicy(ReadsOutlook, BasePolicy):
         scaler = ObservationScaler(tuple(self.config["scaler"]["mean"]), tuple(self.config["scaler"]["std"]))
         self.interface = AgentInterface(scaler, self.config.get("history", 1), action_kind, rule, paw_filter,
                                         outlook)
-        if self.algorithm == "ppo":
-            from stable_baselines3 import PPO
-            self.model = PPO.load(str(self.path), device="cpu")
-        else:
-            from sb3_contrib import RecurrentPPO
-            self.model = RecurrentPPO.load(str(self.path), device="cpu")
+        self.model = algorithm_class(self.algorithm).load(str(self.path), device="cpu")
         expected = (self.interface.input_size,)
         if self.model.observation_space.shape != expected or self.model.action_space.shape != (1,):
             raise ValueError(f"{self.path}: the network takes {self.model.observation_space.shape} and gives "
@@ -290,7 +298,7 @@ class LearnedPolicy(ReadsOutlook, BasePolicy):
 
     def _act_batch(self, obs):
         inputs, _ = self.interface.observe(obs)
-        if self.algorithm == "ppo":
+        if self.algorithm != "recurrent-ppo":
             action, _ = self.model.predict(inputs, deterministic=True)
         else:
             starts = obs[:, DAY] < 0.5

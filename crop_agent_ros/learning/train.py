@@ -409,7 +409,9 @@ def run(args) -> int:
         ("--critic-warmup", getattr(args, "critic_warmup", 0) != 0),
         ("--log-std-final", getattr(args, "log_std_final", None) is not None),
         ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
-        ("--algorithm recurrent-ppo", getattr(args, "algorithm", "ppo") != "ppo")) if given]
+        ("--action-noise", getattr(args, "action_noise", None) is not None),
+        ("--gradient-steps", getattr(args, "gradient_steps", None) is not None),
+        (f"--algorithm {getattr(args, 'algorithm', 'ppo')}", getattr(args, "algorithm", "ppo") != "ppo")) if given]
     if family_only:
         raise UsageError(f"{', '.join(family_only)}: with --task only (a family task's agent)")
     train(args)

@@ -36,6 +36,9 @@ from .agent import ACTION_KINDS, ACTION_SCALE_MM, ALGORITHMS, RESIDUAL_SPAN_MM, 
 
 REWARD_SCALE_USD = 1000.0
 TRAINING_KINDS = ("generator", "mixture")
+TD3_BUFFER_FIELD_DAYS = 1_000_000  # about 6,700 seasons: every transition of the first sixth of a 6 M-step run
+TD3_DEFAULTS = {"action_noise": 0.2, "gradient_steps": 16}
+TD3_OPTIONS = ("--imitate", "--sde", "--critic-warmup", "--log-std-final", "--action residual")
 
 
 def add_task_arguments(parser) -> None:
@@ -63,6 +66,13 @@ def add_task_arguments(parser) -> None:
                         help="with --task: the exploration's log std is not learned but moves linearly from "
                              "--log-std-init to LOG_STD over the training, so that what PPO improves (the return "
                              "of the noisy policy) approaches what is evaluated (its mean action)")
+    parser.add_argument("--action-noise", type=float, default=None, metavar="SIGMA",
+                        help="with --algorithm td3: the exploration's Gaussian noise on the action in [-1, 1] "
+                             f"(default {TD3_DEFAULTS['action_noise']:g} = "
+                             f"{TD3_DEFAULTS['action_noise'] * ACTION_SCALE_MM / 2:g} mm)")
+    parser.add_argument("--gradient-steps", type=int, default=None, metavar="N",
+                        help="with --algorithm td3: gradient steps after each step of the fields (--n-envs "
+                             f"field-days; default {TD3_DEFAULTS['gradient_steps']})")
     parser.add_argument("--training-seasons", type=int, default=None, metavar="N",
                         help="with --task on a generated task: train on a pool of N seasons drawn by the task's "
                              "generator (default: the task's own pool of 1,000)")
@@ -99,6 +109,46 @@ def set_exploration(model, log_std: float) -> None:
         model.policy.log_std.fill_(log_std)
     if model.use_sde:
         model.policy.reset_noise(model.n_envs)
+
+
+def hyper_parameters(args) -> dict:
+    """The run's learning settings, those its algorithm uses."""
+    shared = {k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "batch_size", "gamma")}
+    if args.algorithm == "td3":
+        noise, steps = td3_settings(args)
+        return {**shared, "action_noise": noise, "gradient_steps": steps, "buffer_field_days": TD3_BUFFER_FIELD_DAYS}
+    return {**shared, **{k: getattr(args, k) for k in ("n_steps", "n_epochs", "gae_lambda", "clip_range", "ent_coef",
+                                                       "log_std_init")},
+            **exploration(getattr(args, "sde", None))}
+
+
+def td3_settings(args) -> tuple[float, int]:
+    """(action noise, gradient steps) of a TD3 run: the options given, else TD3_DEFAULTS."""
+    noise = TD3_DEFAULTS["action_noise"] if args.action_noise is None else args.action_noise
+    steps = TD3_DEFAULTS["gradient_steps"] if args.gradient_steps is None else args.gradient_steps
+    return noise, steps
+
+
+def td3_model(venv, args, net_arch, learning_rate):
+    """Stable-Baselines3 TD3 on the fields of ``venv``: replay of the last TD3_BUFFER_FIELD_DAYS field-days,
+    ``--gradient-steps`` updates of minibatches of ``--batch-size`` after each step of the fields, learning from
+    the first 1 % of ``--timesteps`` (at most 20,000 field-days) on; Gaussian action noise ``--action-noise``.
+    UsageError for an option only PPO has."""
+    from stable_baselines3 import TD3
+    from stable_baselines3.common.noise import NormalActionNoise
+    from crop_sim_ros.usage import UsageError
+    given = [flag for flag, value in zip(TD3_OPTIONS, (
+        getattr(args, "imitate", None), getattr(args, "sde", None) is not None, getattr(args, "critic_warmup", 0),
+        getattr(args, "log_std_final", None), getattr(args, "action", "mm") == "residual")) if value]
+    if given:
+        raise UsageError(f"{', '.join(given)}: for PPO only, not --algorithm td3")
+    noise, steps = td3_settings(args)
+    if not noise >= 0 or not 1 <= steps <= 10_000:
+        raise UsageError(f"--action-noise {noise} (>= 0) / --gradient-steps {steps} (1..10,000): out of range")
+    return TD3("MlpPolicy", venv, learning_rate=learning_rate, buffer_size=TD3_BUFFER_FIELD_DAYS,
+               learning_starts=min(20_000, args.timesteps // 100), batch_size=args.batch_size, gamma=args.gamma,
+               train_freq=1, gradient_steps=steps, action_noise=NormalActionNoise(np.zeros(1), np.full(1, noise)),
+               policy_kwargs={"net_arch": net_arch}, seed=args.seed, device="cpu", verbose=0)
 
 
 def exploration(sde_days: int | None) -> dict:
@@ -281,7 +331,14 @@ def train_task(args) -> dict:
                   batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma, gae_lambda=args.gae_lambda,
                   clip_range=args.clip_range, ent_coef=args.ent_coef, seed=args.seed, device="cpu", verbose=0,
                   **exploration(getattr(args, "sde", None)))
-    if args.algorithm == "ppo":
+    td3_only = [flag for flag, value in (("--action-noise", args.action_noise), ("--gradient-steps", args.gradient_steps))
+                if value is not None]
+    if td3_only and args.algorithm != "td3":
+        from crop_sim_ros.usage import UsageError
+        raise UsageError(f"{', '.join(td3_only)}: for --algorithm td3 only")
+    if args.algorithm == "td3":
+        model = td3_model(venv, args, net_arch, common["learning_rate"])
+    elif args.algorithm == "ppo":
         from stable_baselines3 import PPO
         model = PPO("MlpPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init},
                     **common)
@@ -339,10 +396,7 @@ def train_task(args) -> dict:
               **({} if outlook is None else {"outlook": outlook.record()}),
               "scaler": {"mean": list(scaler.mean), "std": list(scaler.std)},
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",
-              "hyper_parameters": {**{k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "n_steps",
-                                                                    "batch_size", "n_epochs", "gamma", "gae_lambda",
-                                                                    "clip_range", "ent_coef", "log_std_init")},
-                                   **exploration(getattr(args, "sde", None))}}
+              "hyper_parameters": hyper_parameters(args)}
 
     def save(model_, name: str, at: int) -> Path:
         path = out / f"{name}.zip"
