@@ -119,7 +119,7 @@ def hyper_parameters(args) -> dict:
         return {**shared, "action_noise": noise, "gradient_steps": steps, "buffer_field_days": TD3_BUFFER_FIELD_DAYS}
     return {**shared, **{k: getattr(args, k) for k in ("n_steps", "n_epochs", "gae_lambda", "clip_range", "ent_coef",
                                                        "log_std_init")},
-            **exploration(getattr(args, "sde", None))}
+            **exploration(args.sde)}
 
 
 def td3_settings(args) -> tuple[float, int]:
@@ -133,22 +133,36 @@ def td3_model(venv, args, net_arch, learning_rate):
     """Stable-Baselines3 TD3 on the fields of ``venv``: replay of the last TD3_BUFFER_FIELD_DAYS field-days,
     ``--gradient-steps`` updates of minibatches of ``--batch-size`` after each step of the fields, learning from
     the first 1 % of ``--timesteps`` (at most 20,000 field-days) on; Gaussian action noise ``--action-noise``.
-    UsageError for an option only PPO has."""
+    (Options checked by :func:`check_options`.)"""
     from stable_baselines3 import TD3
     from stable_baselines3.common.noise import NormalActionNoise
-    from crop_sim_ros.usage import UsageError
-    given = [flag for flag, value in zip(TD3_OPTIONS, (
-        getattr(args, "imitate", None), getattr(args, "sde", None) is not None, getattr(args, "critic_warmup", 0),
-        getattr(args, "log_std_final", None), getattr(args, "action", "mm") == "residual")) if value]
-    if given:
-        raise UsageError(f"{', '.join(given)}: for PPO only, not --algorithm td3")
     noise, steps = td3_settings(args)
-    if not noise >= 0 or not 1 <= steps <= 10_000:
-        raise UsageError(f"--action-noise {noise} (>= 0) / --gradient-steps {steps} (1..10,000): out of range")
     return TD3("MlpPolicy", venv, learning_rate=learning_rate, buffer_size=TD3_BUFFER_FIELD_DAYS,
                learning_starts=min(20_000, args.timesteps // 100), batch_size=args.batch_size, gamma=args.gamma,
                train_freq=1, gradient_steps=steps, action_noise=NormalActionNoise(np.zeros(1), np.full(1, noise)),
                policy_kwargs={"net_arch": net_arch}, seed=args.seed, device="cpu", verbose=0)
+
+
+def check_options(args) -> None:
+    """UsageError, before any work, for an option the run's algorithm does not have or a value out of range."""
+    from crop_sim_ros.usage import UsageError
+    if args.algorithm == "td3":
+        given = [flag for flag, value in zip(TD3_OPTIONS, (
+            args.imitate, args.sde is not None, args.critic_warmup, args.log_std_final, args.action == "residual"))
+            if value]
+        if given:
+            raise UsageError(f"{', '.join(given)}: for PPO only, not --algorithm td3")
+        noise, steps = td3_settings(args)
+        if not noise >= 0 or not 1 <= steps <= 10_000:
+            raise UsageError(f"--action-noise {noise} (>= 0) / --gradient-steps {steps} (1..10,000): out of range")
+    else:
+        td3_only = [flag for flag, value in (("--action-noise", args.action_noise),
+                                             ("--gradient-steps", args.gradient_steps)) if value is not None]
+        if td3_only:
+            raise UsageError(f"{', '.join(td3_only)}: for --algorithm td3 only")
+    if not 0 <= args.critic_warmup < args.timesteps:
+        raise UsageError(f"--critic-warmup {args.critic_warmup}: steps in 0..--timesteps ({args.timesteps}) - 1")
+    exploration(args.sde)  # a negative count is refused
 
 
 def exploration(sde_days: int | None) -> dict:
@@ -293,7 +307,8 @@ def train_task(args) -> dict:
     if scenario.weather.kind not in TRAINING_KINDS:
         raise SystemExit(f"crop-sim train: refusing to train on {scenario.name!r}: training uses generated seasons "
                          "only (real seasons and the held-out climate are for evaluation)")
-    scenario = training_pool(scenario, getattr(args, "training_seasons", None))
+    check_options(args)
+    scenario = training_pool(scenario, args.training_seasons)
     out = Path(args.out) if args.out else Path("runs") / f"{args.task}-{args.algorithm}-s{args.seed}"
     out.mkdir(parents=True, exist_ok=True)
     params = core.task_params(scenario)
@@ -330,12 +345,7 @@ def train_task(args) -> dict:
     common = dict(learning_rate=lambda progress: lr1 + (lr0 - lr1) * progress, n_steps=args.n_steps,
                   batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma, gae_lambda=args.gae_lambda,
                   clip_range=args.clip_range, ent_coef=args.ent_coef, seed=args.seed, device="cpu", verbose=0,
-                  **exploration(getattr(args, "sde", None)))
-    td3_only = [flag for flag, value in (("--action-noise", args.action_noise), ("--gradient-steps", args.gradient_steps))
-                if value is not None]
-    if td3_only and args.algorithm != "td3":
-        from crop_sim_ros.usage import UsageError
-        raise UsageError(f"{', '.join(td3_only)}: for --algorithm td3 only")
+                  **exploration(args.sde))
     if args.algorithm == "td3":
         model = td3_model(venv, args, net_arch, common["learning_rate"])
     elif args.algorithm == "ppo":
@@ -369,13 +379,10 @@ def train_task(args) -> dict:
         imitation = clone(model, interface, demonstrations, args.imitation_epochs,
                           args.seed, after_epoch=keep_early, keep_best=args.imitation_keep_best)
         imitation["early_model"] = f"after {early_epoch} of {args.imitation_epochs} behaviour-cloning epochs"
-    log_std_final = getattr(args, "log_std_final", None)
+    log_std_final = args.log_std_final
     if log_std_final is not None:
         model.policy.log_std.requires_grad_(False)  # set by the schedule at each rollout (Curve)
-    warmup = getattr(args, "critic_warmup", 0)
-    if not 0 <= warmup < args.timesteps:
-        from crop_sim_ros.usage import UsageError
-        raise UsageError(f"--critic-warmup {warmup}: steps in 0..--timesteps ({args.timesteps}) - 1")
+    warmup = args.critic_warmup
     validation = validation_scenario(scenario, args.validation_seasons, args.seed)
     seasons = np.arange(args.validation_seasons)
     terms = draw_terms(validation, seasons, 1234)
