@@ -166,14 +166,18 @@ class ArrayCodec(Generic[Record]):
         types = get_type_hints(record)
         self._casts = tuple(_CASTS[types[name]] for name in record._fields)
 
-    def message(self, record: Record) -> Float64MultiArray:
-        """A new labelled message carrying ``record``."""
+    def labelled(self) -> Float64MultiArray:
+        """A new message with this layout's labels and no values yet (to :meth:`fill` day after day)."""
         message = Float64MultiArray()
         _layout(message, self.labels)
-        return self.fill(message, record)
+        return message
+
+    def message(self, record: Record) -> Float64MultiArray:
+        """A new labelled message carrying ``record``."""
+        return self.fill(self.labelled(), record)
 
     def fill(self, message: Float64MultiArray, record: Record) -> Float64MultiArray:
-        """``message`` (made by :meth:`message`, reused: publishing serialises at once) now carries ``record``."""
+        """``message`` (made by :meth:`labelled`, reused: publishing serialises at once) now carries ``record``."""
         message.data = [float(value) for value in record]
         return message
 

@@ -133,7 +133,7 @@ class FarmSession:
         if len(values) == 3 and values[2] != self.episode:
             return f"episode {values[2]!r} is not the current episode {self.episode}", True
         if self.ended:
-            return f"the season has ended ({self.end_reason}); call ~/reset", True
+            return self._ended_text(), True
         if day < self.day:
             return f"day {int(day)} is past: the current day is {self.day}", True
         if day > self.day:
@@ -172,7 +172,7 @@ class FarmSession:
         """Advance one day with today's pending command (none: 0 mm); the pending command is used up either
         way."""
         if self.ended:
-            return StepOutcome(f"the season has ended ({self.end_reason}); call ~/reset", self.episode, self.day)
+            return StepOutcome(self._ended_text(), self.episode, self.day)
         day, obs_before = self.day, self.obs
         mm, sequence = 0.0, -1
         if self.pending is not None and self.pending[0] == day:
@@ -196,6 +196,9 @@ class FarmSession:
         return StepOutcome(None, self.episode, self.day, day, obs_before, obs, info,
                            info["irrigation_requested_mm"], info["irrigation_applied_mm"], float(reward), terminated,
                            truncated, info["yield_t_ha"] if terminated else 0.0, sequence)
+
+    def _ended_text(self) -> str:
+        return f"the season has ended ({self.end_reason}); call ~/reset"
 
     def cut_reason(self, outcome: StepOutcome) -> str:
         """Why a cut command (``outcome.cut``) was cut: the daily capacity or the season's quota."""

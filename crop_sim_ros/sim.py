@@ -232,12 +232,12 @@ class SimNode(Node):
         self._pub_node_status = self.create_publisher(DiagnosticStatus, "~/" + ri.STATUS_TOPIC, ri.STATE_QOS)
         self._msg_obs = ri.observation_message(np.zeros(PAPER.size, np.float32))  # relabelled at each reset
         # Messages reused day after day (publishing serialises at once); the step result's labels follow the task.
-        self._msg_biomass = ri.BIOMASS_READING.message(ri.BiomassReading(0, 0.0))
-        self._msg_paw = ri.PAW_READING.message(ri.PawReading(0, 0.0))
-        self._msg_today = ri.WEATHER_TODAY.message(ri.WeatherToday(0, *[0.0] * 8))
-        self._msg_forecast = ri.WEATHER_FORECAST.message(ri.WeatherForecast(1, *[0.0] * 8))
+        self._msg_biomass = ri.BIOMASS_READING.labelled()
+        self._msg_paw = ri.PAW_READING.labelled()
+        self._msg_today = ri.WEATHER_TODAY.labelled()
+        self._msg_forecast = ri.WEATHER_FORECAST.labelled()
         self._result_codec = ri.STEP_RESULT
-        self._msg_result = self._result_codec.message(ri.StepResult(0, 0, 0.0, 0.0, False, False, 0.0, 0.0, -1))
+        self._msg_result = self._result_codec.labelled()
 
         self.create_subscription(Float64MultiArray, "~/" + ri.IRRIGATION_TOPIC, self._on_irrigation,
                                  ri.COMMAND_SUBSCRIPTION_QOS)
@@ -443,8 +443,7 @@ class SimNode(Node):
             self._log_rows_lost += 1
             failing_before = bool(self._log_error)
             self._log_error = (f"season log {self._log_path}: the row of episode {self._session.episode} day {day} "
-                               "was not "
-                               f"written ({error.strerror or error}); {self._log_rows_lost} row"
+                               f"was not written ({error.strerror or error}); {self._log_rows_lost} row"
                                f"{'s' if self._log_rows_lost > 1 else ''} lost so far")
             self.get_logger().error(self._log_error + " (logged at most once a second; counted on ~/status)",
                                     throttle_duration_sec=1.0)
@@ -513,7 +512,7 @@ class SimNode(Node):
             family = env.scenario.is_family_task
             self._msg_obs = ri.observation_message(session.obs)  # the layout's labels (20 or 29 values)
             self._result_codec = ri.step_result_codec(family)
-            self._msg_result = self._result_codec.message(ri.StepResult(0, 0, 0.0, 0.0, False, False, 0.0, 0.0, -1))
+            self._msg_result = self._result_codec.labelled()
             terms = ri.FarmTerms(session.episode, *session.terms)
             self._pub_terms.publish(ri.FARM_TERMS.message(terms))
             self._publish(ri.StepResult(session.episode, session.day, 0.0, 0.0, False, False, 0.0, 0.0, -1))

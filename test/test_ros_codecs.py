@@ -41,6 +41,9 @@ def test_a_record_round_trips_through_the_wire(name):
     # a reused message carries the next record
     other = record._replace(**{record._fields[0]: 99})
     assert codec.read(codec.fill(message, other))[0] == 99
+    blank = codec.labelled()  # labelled before its first day
+    assert blank.layout.dim[0].label == message.layout.dim[0].label and len(blank.data) == 0
+    assert same(codec.read(codec.fill(blank, record)), record)
 
 
 def test_labels_name_every_field_with_its_unit():

@@ -24,8 +24,9 @@ noise, a third of the readings missing) its error is about a fifth of the readin
 
 The recurrent agent (sb3-contrib RecurrentPPO, an LSTM policy) sees one scaled observation per day and
 carries its memory in the LSTM state. The off-policy agent (Stable-Baselines3 TD3: a deterministic policy
-improved along its critic's action gradient, exploring with Gaussian noise on the action) sees and acts as PPO's. What the network sees and what its action does is one object,
-:class:`AgentInterface`, used alike by training and by the loaded policy. Both are
+improved along its critic's action gradient, exploring with Gaussian noise on the action) sees and acts as
+PPO's. What the network sees and what its action does is one object, :class:`AgentInterface`, used alike by
+training and by the loaded policy. Both are
 :class:`~crop_agent_ros.policies.base.BasePolicy` objects once loaded (:class:`LearnedPolicy`): ``reset`` clears
 the memory (and the rule's checkbook), ``act`` takes (N, 29) observations.
 """

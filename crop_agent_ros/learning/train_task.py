@@ -38,7 +38,6 @@ REWARD_SCALE_USD = 1000.0
 TRAINING_KINDS = ("generator", "mixture")
 TD3_BUFFER_FIELD_DAYS = 1_000_000  # about 6,700 seasons: every transition of the first sixth of a 6 M-step run
 TD3_DEFAULTS = {"action_noise": 0.2, "gradient_steps": 16}
-TD3_OPTIONS = ("--imitate", "--sde", "--critic-warmup", "--log-std-final", "--action residual")
 
 
 def add_task_arguments(parser) -> None:
@@ -147,8 +146,9 @@ def check_options(args) -> None:
     """UsageError, before any work, for an option the run's algorithm does not have or a value out of range."""
     from crop_sim_ros.usage import UsageError
     if args.algorithm == "td3":
-        given = [flag for flag, value in zip(TD3_OPTIONS, (
-            args.imitate, args.sde is not None, args.critic_warmup, args.log_std_final, args.action == "residual"))
+        given = [flag for flag, value in (
+            ("--imitate", args.imitate), ("--sde", args.sde is not None), ("--critic-warmup", args.critic_warmup),
+            ("--log-std-final", args.log_std_final is not None), ("--action residual", args.action == "residual"))
             if value]
         if given:
             raise UsageError(f"{', '.join(given)}: for PPO only, not --algorithm td3")
