@@ -25,8 +25,9 @@ noise, a third of the readings missing) its error is about a fifth of the readin
 The recurrent agent (sb3-contrib RecurrentPPO, an LSTM policy) sees one scaled observation per day and
 carries its memory in the LSTM state. The off-policy agent (Stable-Baselines3 TD3: a deterministic policy
 improved along its critic's action gradient, exploring with Gaussian noise on the action) sees and acts as
-PPO's. What the network sees and what its action does is one object, :class:`AgentInterface`, used alike by
-training and by the loaded policy. Both are
+PPO's. The evolution strategies agent (:mod:`.evolution`) is the same network, improved by perturbing its
+parameters rather than its actions (its file is a PPO policy file). What the network sees and what its action
+does is one object, :class:`AgentInterface`, used alike by training and by the loaded policy. All are
 :class:`~crop_agent_ros.policies.base.BasePolicy` objects once loaded (:class:`LearnedPolicy`): ``reset`` clears
 the memory (and the rule's checkbook), ``act`` takes (N, 29) observations.
 """
@@ -50,14 +51,15 @@ ACTION_SCALE_MM = 25.0  # a = 1 asks 25 mm: above any day's need (ET0 <= ~11 mm/
 # rule action (the rule never asks more than the pivot's 8 mm/d) or to add more than a day of a pivot's water,
 # while a unit of the action stays a few mm (the exploration noise, exp(log_std_init) x 10 mm, stays small).
 RESIDUAL_SPAN_MM = 10.0
-ALGORITHMS = ("ppo", "recurrent-ppo", "td3")
+ALGORITHMS = ("ppo", "recurrent-ppo", "td3", "es")
 ACTION_KINDS = ("mm", "residual")
 DAY = EXTENDED.index("days_since_sowing")
 
 
 def algorithm_class(algorithm: str):
-    """The Stable-Baselines3 class of ``algorithm`` (one of ALGORITHMS), imported on demand."""
-    if algorithm == "ppo":
+    """The Stable-Baselines3 class of ``algorithm`` (one of ALGORITHMS), imported on demand (evolution strategies'
+    network lives in a PPO policy)."""
+    if algorithm in ("ppo", "es"):
         from stable_baselines3 import PPO
         return PPO
     if algorithm == "td3":

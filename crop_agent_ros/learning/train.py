@@ -35,6 +35,20 @@ import numpy as np
 HELD_OUT = ("heldout", "benton-2000", "paterson-1992", "paterson-1993", "paterson-1994", "paterson-1995")
 
 
+# (first, final) learning rate when not given: the gradient learners' (PPO, RecurrentPPO, TD3) and the
+# evolution strategies' (an Adam step on the parameters themselves, crop_agent_ros.learning.evolution)
+LEARNING_RATES = {"gradient": (1e-4, 1e-5), "es": (0.01, 0.001)}
+
+
+def fill_learning_rates(args) -> None:
+    """``--learning-rate`` / ``--final-learning-rate`` not given: the defaults of the run's algorithm."""
+    first, final = LEARNING_RATES["es" if getattr(args, "algorithm", "ppo") == "es" else "gradient"]
+    if args.learning_rate is None:
+        args.learning_rate = first
+    if args.final_learning_rate is None:
+        args.final_learning_rate = final
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("--name", default="ppo", help="run name (output in runs/<name> unless --out)")
     parser.add_argument("--out", type=Path, default=None, help="output directory (default runs/<name>)")
@@ -52,8 +66,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--margin-span", type=float, default=15.0, help="margin mode: mm per unit of action")
     parser.add_argument("--demand-span", type=float, default=1.0,
                         help="demand mode: the level is (1 + span * a) * ET0/0.096 + margin-center")
-    parser.add_argument("--learning-rate", type=float, default=1e-4)
-    parser.add_argument("--final-learning-rate", type=float, default=1e-5, help="linear decay to this value")
+    parser.add_argument("--learning-rate", type=float, default=None,
+                        help=f"first learning rate (default {LEARNING_RATES['gradient'][0]:g}; --algorithm es: Adam's "
+                             f"step on the parameters, default {LEARNING_RATES['es'][0]:g})")
+    parser.add_argument("--final-learning-rate", type=float, default=None,
+                        help=f"linear decay to this value (default {LEARNING_RATES['gradient'][1]:g}; es: "
+                             f"{LEARNING_RATES['es'][1]:g})")
     parser.add_argument("--n-steps", type=int, default=256, help="rollout length per field")
     parser.add_argument("--batch-size", type=int, default=2048)
     parser.add_argument("--n-epochs", type=int, default=10)
@@ -203,6 +221,7 @@ def plot_curve(rows: list[dict], path: Path, title: str) -> None:
 
 def train(args) -> dict:
     import torch
+    fill_learning_rates(args)
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from ..policies.oracle import OraclePolicy

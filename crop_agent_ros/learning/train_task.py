@@ -33,6 +33,7 @@ import numpy as np
 
 from .train import silent_logger, validation_scenario
 from .agent import ACTION_KINDS, ACTION_SCALE_MM, ALGORITHMS, RESIDUAL_SPAN_MM, AgentInterface, ObservationScaler
+from .evolution import ES_DEFAULTS, es_settings
 
 REWARD_SCALE_USD = 1000.0
 TRAINING_KINDS = ("generator", "mixture")
@@ -72,6 +73,15 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--gradient-steps", type=int, default=None, metavar="N",
                         help="with --algorithm td3: gradient steps after each step of the fields (--n-envs "
                              f"field-days; default {TD3_DEFAULTS['gradient_steps']})")
+    parser.add_argument("--es-pairs", type=int, default=None, metavar="N",
+                        help="with --algorithm es: antithetic pairs of candidates per generation (default "
+                             f"{ES_DEFAULTS['pairs']})")
+    parser.add_argument("--es-noise-std", type=float, default=None, metavar="SIGMA",
+                        help="with --algorithm es: the std of the parameter perturbations (default "
+                             f"{ES_DEFAULTS['noise_std']:g})")
+    parser.add_argument("--es-seasons", type=int, default=None, metavar="N",
+                        help="with --algorithm es: training seasons every candidate of a generation runs (the same "
+                             f"for all; default {ES_DEFAULTS['seasons']})")
     parser.add_argument("--training-seasons", type=int, default=None, metavar="N",
                         help="with --task on a generated task: train on a pool of N seasons drawn by the task's "
                              "generator (default: the task's own pool of 1,000)")
@@ -116,6 +126,9 @@ def hyper_parameters(args) -> dict:
     if args.algorithm == "td3":
         noise, steps = td3_settings(args)
         return {**shared, "action_noise": noise, "gradient_steps": steps, "buffer_field_days": TD3_BUFFER_FIELD_DAYS}
+    if args.algorithm == "es":
+        return {"learning_rate": args.learning_rate, "final_learning_rate": args.final_learning_rate,
+                **{f"es_{k}": v for k, v in es_settings(args).items()}}
     return {**shared, **{k: getattr(args, k) for k in ("n_steps", "n_epochs", "gae_lambda", "clip_range", "ent_coef",
                                                        "log_std_init")},
             **exploration(args.sde)}
@@ -145,21 +158,28 @@ def td3_model(venv, args, net_arch, learning_rate):
 def check_options(args) -> None:
     """UsageError, before any work, for an option the run's algorithm does not have or a value out of range."""
     from crop_sim_ros.usage import UsageError
+    ppo_only = [flag for flag, value in (
+        ("--imitate", args.imitate), ("--sde", args.sde is not None), ("--critic-warmup", args.critic_warmup),
+        ("--log-std-final", args.log_std_final is not None), ("--action residual", args.action == "residual"))
+        if value]
+    if args.algorithm in ("td3", "es") and ppo_only:
+        raise UsageError(f"{', '.join(ppo_only)}: for PPO only, not --algorithm {args.algorithm}")
+    td3_only = [flag for flag, value in (("--action-noise", args.action_noise),
+                                         ("--gradient-steps", args.gradient_steps)) if value is not None]
+    es_only = [flag for flag, value in (("--es-pairs", args.es_pairs), ("--es-noise-std", args.es_noise_std),
+                                        ("--es-seasons", args.es_seasons)) if value is not None]
+    for algorithm, flags in (("td3", td3_only), ("es", es_only)):
+        if args.algorithm != algorithm and flags:
+            raise UsageError(f"{', '.join(flags)}: for --algorithm {algorithm} only")
     if args.algorithm == "td3":
-        given = [flag for flag, value in (
-            ("--imitate", args.imitate), ("--sde", args.sde is not None), ("--critic-warmup", args.critic_warmup),
-            ("--log-std-final", args.log_std_final is not None), ("--action residual", args.action == "residual"))
-            if value]
-        if given:
-            raise UsageError(f"{', '.join(given)}: for PPO only, not --algorithm td3")
         noise, steps = td3_settings(args)
         if not noise >= 0 or not 1 <= steps <= 10_000:
             raise UsageError(f"--action-noise {noise} (>= 0) / --gradient-steps {steps} (1..10,000): out of range")
-    else:
-        td3_only = [flag for flag, value in (("--action-noise", args.action_noise),
-                                             ("--gradient-steps", args.gradient_steps)) if value is not None]
-        if td3_only:
-            raise UsageError(f"{', '.join(td3_only)}: for --algorithm td3 only")
+    if args.algorithm == "es":
+        es = es_settings(args)
+        if not (1 <= es["pairs"] <= 1_000 and 0 < es["noise_std"] <= 10 and 1 <= es["seasons"] <= 1_000):
+            raise UsageError(f"--es-pairs {es['pairs']} (1..1,000) / --es-noise-std {es['noise_std']} (0..10] / "
+                             f"--es-seasons {es['seasons']} (1..1,000): out of range")
     if not 0 <= args.critic_warmup < args.timesteps:
         raise UsageError(f"--critic-warmup {args.critic_warmup}: steps in 0..--timesteps ({args.timesteps}) - 1")
     exploration(args.sde)  # a negative count is refused
@@ -298,8 +318,10 @@ def train_task(args) -> dict:
     from ..policies.rollout import run_episodes
     from .agent import LearnedPolicy
 
+    from .train import fill_learning_rates
     torch.set_num_threads(1)
     launched = time.perf_counter()
+    fill_learning_rates(args)
     scenario = get_scenario(args.task)
     if not scenario.is_family_task:
         raise SystemExit(f"crop-sim train: {args.task!r} is not a family task (its observation has 20 values); "
@@ -309,6 +331,10 @@ def train_task(args) -> dict:
                          "only (real seasons and the held-out climate are for evaluation)")
     check_options(args)
     scenario = training_pool(scenario, args.training_seasons)
+    if args.algorithm == "es" and es_settings(args)["seasons"] > scenario.n_seasons:
+        from crop_sim_ros.usage import UsageError
+        raise UsageError(f"--es-seasons {es_settings(args)['seasons']}: the training pool has {scenario.n_seasons} "
+                         "seasons")
     out = Path(args.out) if args.out else Path("runs") / f"{args.task}-{args.algorithm}-s{args.seed}"
     out.mkdir(parents=True, exist_ok=True)
     params = core.task_params(scenario)
@@ -348,7 +374,7 @@ def train_task(args) -> dict:
                   **exploration(args.sde))
     if args.algorithm == "td3":
         model = td3_model(venv, args, net_arch, common["learning_rate"])
-    elif args.algorithm == "ppo":
+    elif args.algorithm in ("ppo", "es"):  # (es: the PPO policy holds the network; PPO never learns)
         from stable_baselines3 import PPO
         model = PPO("MlpPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init},
                     **common)
@@ -412,6 +438,27 @@ def train_task(args) -> dict:
         return path
 
     rows: list[dict] = []
+    started = [None]
+
+    def checkpoint(model_, steps: int) -> None:
+        """Save the policy as ``checkpoint_<steps>`` and add its validation row to the curve."""
+        path = save(model_, f"checkpoint_{steps:09d}", steps)
+        episodes = run_episodes(LearnedPolicy(path), validation, seasons, seed=1000, terms=terms)
+        row = {"timesteps": int(steps), "wall_s": round(time.perf_counter() - started[0], 1),
+               "validation_return": float(episodes.episode_return.mean()),
+               "validation_minus_default_rule": float(episodes.episode_return.mean() - rule_return),
+               "validation_water_mm": float(episodes.water_mm.mean())}
+        rows.append(row)
+        tuned = "" if tuned_rule_return is None else f", tuned rule {tuned_rule_return:.1f}"
+        print(f"[{row['timesteps']:>9}] {row['wall_s']:>6.0f} s  validation return {row['validation_return']:.1f}"
+              f" (default rule {rule_return:.1f}{tuned}), water {row['validation_water_mm']:.0f} mm",
+              file=sys.stderr, flush=True)
+
+    def training_starts() -> None:
+        if started[0] is None:  # (a critic warm-up trains in two calls)
+            started[0] = time.perf_counter()
+            print(f"training starts {started[0] - launched:.1f} s after launch", file=sys.stderr, flush=True)
+
     early_at = max(args.n_envs * args.n_steps, args.timesteps // 100)
     if imitation is not None:
         cloned = {k: v.clone() for k, v in model.policy.state_dict().items()}
@@ -425,12 +472,9 @@ def train_task(args) -> dict:
             super().__init__()
             self.next_eval = 0
             self.early_saved = imitation is not None  # saved already: 1 % of the cloning
-            self.started = None
 
         def _on_training_start(self) -> None:
-            if self.started is None:  # (a critic warm-up trains in two calls)
-                self.started = time.perf_counter()
-                print(f"training starts {self.started - launched:.1f} s after launch", file=sys.stderr, flush=True)
+            training_starts()
 
         def _on_rollout_start(self) -> None:
             if log_std_final is not None:
@@ -441,46 +485,44 @@ def train_task(args) -> dict:
             if not self.early_saved and self.num_timesteps >= early_at:
                 self.early_saved = True
                 save(self.model, "early_model", self.num_timesteps)
-                self.evaluate()
+                checkpoint(self.model, self.num_timesteps)
             if self.num_timesteps >= self.next_eval:
                 self.next_eval += args.eval_freq
-                self.evaluate()
+                checkpoint(self.model, self.num_timesteps)
             return True
 
-        def evaluate(self):
-            path = save(self.model, f"checkpoint_{self.num_timesteps:09d}", self.num_timesteps)
-            policy = LearnedPolicy(path)
-            episodes = run_episodes(policy, validation, seasons, seed=1000, terms=terms)
-            row = {"timesteps": int(self.num_timesteps), "wall_s": round(time.perf_counter() - self.started, 1),
-                   "validation_return": float(episodes.episode_return.mean()),
-                   "validation_minus_default_rule": float(episodes.episode_return.mean() - rule_return),
-                   "validation_water_mm": float(episodes.water_mm.mean())}
-            rows.append(row)
-            tuned = "" if tuned_rule_return is None else f", tuned rule {tuned_rule_return:.1f}"
-            print(f"[{row['timesteps']:>9}] {row['wall_s']:>6.0f} s  validation return {row['validation_return']:.1f}"
-                  f" (default rule {rule_return:.1f}{tuned}), water {row['validation_water_mm']:.0f} mm",
-                  file=sys.stderr, flush=True)
+    if args.algorithm == "es":
+        from .evolution import evolve
 
-    callback = Curve()
-    if warmup:
-        with frozen_actor(model.policy):
-            model.learn(total_timesteps=warmup, callback=callback, progress_bar=not args.no_progress)
-    # (continuing: the learning-rate schedule runs on over the whole --timesteps)
-    model.learn(total_timesteps=args.timesteps - model.num_timesteps, callback=callback,
-                progress_bar=not args.no_progress, reset_num_timesteps=not warmup)
-    training_s = time.perf_counter() - callback.started
-    callback.evaluate()
-    save(model, "final_model", model.num_timesteps)
+        def es_checkpoint(steps: int, early: bool) -> None:
+            if early:
+                save(model, "early_model", steps)
+            checkpoint(model, steps)
+
+        training_starts()
+        steps_run = evolve(model, interface, scenario, args, es_checkpoint)
+    else:
+        callback = Curve()
+        if warmup:
+            with frozen_actor(model.policy):
+                model.learn(total_timesteps=warmup, callback=callback, progress_bar=not args.no_progress)
+        # (continuing: the learning-rate schedule runs on over the whole --timesteps)
+        model.learn(total_timesteps=args.timesteps - model.num_timesteps, callback=callback,
+                    progress_bar=not args.no_progress, reset_num_timesteps=not warmup)
+        steps_run = int(model.num_timesteps)
+    training_s = time.perf_counter() - started[0]
+    checkpoint(model, steps_run)
+    save(model, "final_model", steps_run)
     with open(out / "learning_curve.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
     selected = select_model(out)
-    summary = {**config, "steps_run": int(model.num_timesteps), "selected": selected, "training_wall_s": round(training_s, 1),
+    summary = {**config, "steps_run": steps_run, "selected": selected, "training_wall_s": round(training_s, 1),
                "total_wall_s": round(time.perf_counter() - launched, 1), "default_rule_validation_return": rule_return,
                **({} if tuned_rule_return is None else {"tuned_rule_validation_return": tuned_rule_return}),
                "final": rows[-1], "command": "crop-sim " + " ".join(sys.argv[1:])}
     (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
-    print(f"ran {model.num_timesteps} steps ({args.timesteps} asked) in {training_s:.0f} s of training, "
+    print(f"ran {steps_run} steps ({args.timesteps} asked) in {training_s:.0f} s of training, "
           f"{summary['total_wall_s']:.0f} s in all; wrote {out}", file=sys.stderr)
     return summary

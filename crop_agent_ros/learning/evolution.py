@@ -1,0 +1,200 @@
+"""Evolution strategies for the family agent (``crop-sim train --task T --algorithm es``): the deterministic
+policy improved directly on its own return.
+
+PPO improves the return of its *noisy* policy; what is evaluated (and what a farm runs) is the mean action.
+On the quota tasks the two differ by more than PPO's gain over the tuned rule: a cloned planner's policy returns
+14,624 USD/ha on benton-quota's validation seasons with a little exploration noise and 15,269 without, and PPO
+moves it towards the first (README, "The headline agent, again"). Evolution strategies (Salimans et al. 2017,
+"Evolution Strategies as a Scalable Alternative to Reinforcement Learning") perturb the network's *parameters*
+instead of its actions, so every candidate is a deterministic policy and the objective is the one evaluated:
+
+- a generation draws ``seasons`` training seasons (from the task's pool of generated seasons), their episode
+  terms and an observation-noise seed; ``pairs`` antithetic candidates theta +- sigma x eps_i each run all of
+  them (the same seasons, terms and noise draw for every candidate: common random numbers, so candidates differ
+  by their parameters, not by their luck);
+- a candidate's fitness is its mean season return (the task's reward, USD/ha, unshaped: no critic, no
+  discount, no bootstrap); fitnesses are replaced by centred ranks in [-0.5, 0.5];
+- the gradient estimate sum_i (rank(+i) - rank(-i)) eps_i / (2 n sigma) moves theta by Adam, with a step
+  size decaying linearly from ``--learning-rate`` to ``--final-learning-rate`` over ``--timesteps``.
+
+The network, its observation and its action are the headline agent's (:mod:`.agent`: normalised raw
+observation, action in mm); it lives in a Stable-Baselines3 PPO policy (the container the policy file and
+:class:`~.agent.LearnedPolicy` load; its value network and exploration scale are unused). The environment steps
+a run uses (``--timesteps``) are field-days of every candidate's seasons.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..policies.outlook import ReadsOutlook
+from .agent import AgentInterface, action_to_mm
+
+ES_DEFAULTS = {"pairs": 32, "noise_std": 0.02, "seasons": 32}
+ES_LEARNING_RATES = (0.01, 0.001)  # Adam's step on the parameters, first and last (unit: the parameters')
+
+
+class ActorVector:
+    """The actor of a Stable-Baselines3 ``ActorCriticPolicy`` (``mlp_extractor.policy_net``: Linear and Tanh
+    layers; ``action_net``: Linear) as one flat float64 vector: each layer's weight (inputs x outputs, row-major)
+    then its bias."""
+
+    def __init__(self, policy):
+        import torch.nn as nn
+        hidden = list(policy.mlp_extractor.policy_net)
+        linear = [m for m in hidden if isinstance(m, nn.Linear)]
+        if any(not isinstance(m, (nn.Linear, nn.Tanh)) for m in hidden) or len(hidden) != 2 * len(linear):
+            raise ValueError(f"evolution strategies need a Linear/Tanh actor, not {hidden}")
+        self.layers = [*linear, policy.action_net]
+        self.shapes = [(layer.in_features, layer.out_features) for layer in self.layers]
+        self.size = sum(i * o + o for i, o in self.shapes)
+
+    def get(self) -> np.ndarray:
+        return np.concatenate([np.concatenate([layer.weight.detach().numpy().T.ravel(), layer.bias.detach().numpy()])
+                               for layer in self.layers]).astype(np.float64)
+
+    def set(self, theta: np.ndarray) -> None:
+        import torch
+        with torch.no_grad():
+            for layer, (weight, bias) in zip(self.layers, self.unflatten(theta[None, :])):
+                layer.weight.copy_(torch.as_tensor(weight[0].T, dtype=layer.weight.dtype))
+                layer.bias.copy_(torch.as_tensor(bias[0], dtype=layer.bias.dtype))
+
+    def unflatten(self, thetas: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(P, size) parameter vectors -> per layer (weights (P, inputs, outputs), biases (P, outputs))."""
+        out, k = [], 0
+        for i, o in self.shapes:
+            weight = thetas[:, k:k + i * o].reshape(-1, i, o)
+            k += i * o
+            out.append((weight, thetas[:, k:k + o]))
+            k += o
+        return out
+
+
+def actor_outputs(layers: list[tuple[np.ndarray, np.ndarray]], inputs: np.ndarray) -> np.ndarray:
+    """The P actors' outputs (P, B) for their (P, B, inputs) inputs: tanh hidden layers, linear last layer
+    (the mean action, before the [-1, 1] clip), as SB3's deterministic ``predict``."""
+    h = inputs
+    for j, (weight, bias) in enumerate(layers):
+        h = np.einsum("pbi,pio->pbo", h, weight) + bias[:, None, :]
+        if j < len(layers) - 1:
+            h = np.tanh(h)
+    return h[..., 0]
+
+
+class Population(ReadsOutlook):
+    """P candidate actors on P x B fields: candidate p acts on fields p B .. (p + 1) B - 1, each field seen through
+    one :class:`~.agent.AgentInterface` (history, filter, rule, outlook per field, as a loaded policy's)."""
+
+    def __init__(self, actor: ActorVector, thetas: np.ndarray, fields_each: int, interface: AgentInterface):
+        self.layers = actor.unflatten(np.atleast_2d(thetas))
+        self.fields_each = int(fields_each)
+        self.interface = interface
+        self.outlook = interface.outlook
+
+    def reset(self, seed: int | None = None) -> None:
+        self.interface.reset()
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        inputs, _ = self.interface.observe(obs)
+        candidates = self.layers[0][0].shape[0]
+        outputs = actor_outputs(self.layers, inputs.reshape(candidates, self.fields_each, -1).astype(np.float64))
+        return self.interface.to_mm(outputs.reshape(-1, 1))
+
+
+def centred_ranks(values: np.ndarray) -> np.ndarray:
+    """Ranks of ``values`` scaled to [-0.5, 0.5], tied values sharing their mean rank (candidates whose
+    perturbations change nothing, e.g. every action above the pivot's capacity, then add nothing to the
+    gradient): the fitness shaping of Salimans et al."""
+    values = np.asarray(values, dtype=float)
+    distinct, group, count = np.unique(values, return_inverse=True, return_counts=True)
+    first = np.concatenate([[0], np.cumsum(count)[:-1]])
+    mean_rank = first + (count - 1) / 2.0
+    return mean_rank[group] / max(1, len(values) - 1) - 0.5
+
+
+def antithetic_gradient(fitness: np.ndarray, noise: np.ndarray, noise_std: float) -> np.ndarray:
+    """The ES gradient estimate from the fitness of the 2n candidates theta + sigma eps_i (first n) and
+    theta - sigma eps_i (last n), ``noise`` (n, size) holding eps_i: centred ranks, antithetic differences."""
+    n = len(noise)
+    shaped = centred_ranks(np.asarray(fitness, dtype=float))
+    return (shaped[:n] - shaped[n:]) @ noise / (2 * n * noise_std)
+
+
+@dataclass
+class Adam:
+    """Adam's step (Kingma & Ba 2015) for gradient *ascent* on a flat parameter vector."""
+
+    size: int
+    beta1: float = 0.9
+    beta2: float = 0.999
+    epsilon: float = 1e-8
+
+    def __post_init__(self):
+        self.m = np.zeros(self.size)
+        self.v = np.zeros(self.size)
+        self.t = 0
+
+    def step(self, gradient: np.ndarray, learning_rate: float) -> np.ndarray:
+        self.t += 1
+        self.m = self.beta1 * self.m + (1 - self.beta1) * gradient
+        self.v = self.beta2 * self.v + (1 - self.beta2) * gradient ** 2
+        m_hat = self.m / (1 - self.beta1 ** self.t)
+        v_hat = self.v / (1 - self.beta2 ** self.t)
+        return learning_rate * m_hat / (np.sqrt(v_hat) + self.epsilon)
+
+
+def es_settings(args) -> dict:
+    """The run's ES settings: the options given, else ES_DEFAULTS."""
+    given = {"pairs": args.es_pairs, "noise_std": args.es_noise_std, "seasons": args.es_seasons}
+    return {k: ES_DEFAULTS[k] if v is None else v for k, v in given.items()}
+
+
+def evolve(model, interface: AgentInterface, scenario, args, checkpoint, progress=None) -> int:
+    """Run ES on ``model``'s actor for ``args.timesteps`` field-days of ``scenario``'s training seasons;
+    ``checkpoint(steps)`` is called with the current parameters in ``model`` at 1 % of the budget, every
+    ``args.eval_freq`` field-days and at the end. Returns the field-days run."""
+    from ..policies.rollout import run_episodes, season_contexts
+    from ..policies.family_tuning import draw_terms
+
+    settings = es_settings(args)
+    pairs, noise_std, seasons_each = settings["pairs"], settings["noise_std"], settings["seasons"]
+    n_pool = scenario.n_seasons  # (train_task refused --es-seasons above it)
+    actor = ActorVector(model.policy)
+    theta = actor.get()
+    adam = Adam(actor.size)
+    rng = np.random.default_rng([args.seed, 4_373])
+    contexts = season_contexts(scenario) if interface.outlook is not None else None
+    lr0, lr1 = args.learning_rate, args.final_learning_rate
+    early_at = max(1, args.timesteps // 100)
+    steps, next_eval, early_done = 0, 0, False
+    checkpoint(0, early=False)
+    next_eval += args.eval_freq
+    while steps < args.timesteps:
+        seasons = rng.choice(n_pool, seasons_each, replace=False)
+        terms = draw_terms(scenario, seasons, int(rng.integers(2 ** 31)))
+        noise = rng.standard_normal((pairs, actor.size))
+        candidates = np.concatenate([theta + noise_std * noise, theta - noise_std * noise])
+        population = Population(actor, candidates, seasons_each, interface)
+        episodes = run_episodes(population, scenario, np.tile(seasons, len(candidates)),
+                                seed=int(rng.integers(2 ** 31)),
+                                terms={k: np.tile(v, len(candidates)) for k, v in terms.items()},
+                                contexts=contexts)
+        fitness = episodes.episode_return.reshape(len(candidates), seasons_each).mean(axis=1)
+        done = min(1.0, steps / args.timesteps)
+        theta = theta + adam.step(antithetic_gradient(fitness, noise, noise_std), lr0 + (lr1 - lr0) * done)
+        steps += int(episodes.days.sum())
+        if progress is not None:
+            progress(steps, float(fitness.mean()))
+        if not early_done and steps >= early_at:
+            early_done = True
+            actor.set(theta)
+            checkpoint(steps, early=True)
+        if steps >= next_eval and steps < args.timesteps:
+            next_eval += args.eval_freq
+            actor.set(theta)
+            checkpoint(steps, early=False)
+    actor.set(theta)
+    return steps
