@@ -95,7 +95,7 @@ def test_a_tiny_es_run_improves_reproduces_and_loads_as_a_family_agent(tmp_path)
     summary, out = _es(tmp_path, "a")
     config = json.loads((out / "model.json").read_text())
     assert config["algorithm"] == "es" and summary["steps_run"] >= 120_000
-    assert config["hyper_parameters"] == {"learning_rate": 0.01, "final_learning_rate": 0.001, "es_pairs": 3,
+    assert config["hyper_parameters"] == {"learning_rate": 0.02, "final_learning_rate": 0.002, "es_pairs": 3,
                                           "es_noise_std": 0.3, "es_seasons": 3}
     import csv
     with open(out / "learning_curve.csv", newline="") as f:

@@ -32,8 +32,7 @@ import numpy as np
 from ..policies.outlook import ReadsOutlook
 from .agent import AgentInterface, action_to_mm
 
-ES_DEFAULTS = {"pairs": 32, "noise_std": 0.02, "seasons": 32}
-ES_LEARNING_RATES = (0.01, 0.001)  # Adam's step on the parameters, first and last (unit: the parameters')
+ES_DEFAULTS = {"pairs": 32, "noise_std": 0.05, "seasons": 32}
 
 
 class ActorVector:

@@ -37,7 +37,7 @@ HELD_OUT = ("heldout", "benton-2000", "paterson-1992", "paterson-1993", "paterso
 
 # (first, final) learning rate when not given: the gradient learners' (PPO, RecurrentPPO, TD3) and the
 # evolution strategies' (an Adam step on the parameters themselves, crop_agent_ros.learning.evolution)
-LEARNING_RATES = {"gradient": (1e-4, 1e-5), "es": (0.01, 0.001)}
+LEARNING_RATES = {"gradient": (1e-4, 1e-5), "es": (0.02, 0.002)}
 
 
 def fill_learning_rates(args) -> None:
