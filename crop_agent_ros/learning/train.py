@@ -430,6 +430,8 @@ def run(args) -> int:
         ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
         ("--action-noise", getattr(args, "action_noise", None) is not None),
         ("--gradient-steps", getattr(args, "gradient_steps", None) is not None),
+        *((flag, getattr(args, name, None) is not None) for flag, name in (
+            ("--es-pairs", "es_pairs"), ("--es-noise-std", "es_noise_std"), ("--es-seasons", "es_seasons"))),
         (f"--algorithm {getattr(args, 'algorithm', 'ppo')}", getattr(args, "algorithm", "ppo") != "ppo")) if given]
     if family_only:
         raise UsageError(f"{', '.join(family_only)}: with --task only (a family task's agent)")
