@@ -33,6 +33,22 @@ from ..policies.outlook import ReadsOutlook
 from .agent import AgentInterface, action_to_mm
 
 ES_DEFAULTS = {"pairs": 32, "noise_std": 0.05, "seasons": 32}
+# setting -> (its option of `crop-sim train --task T --algorithm es`, type, metavar, what it is)
+ES_OPTIONS = {"pairs": ("--es-pairs", int, "N", "antithetic pairs of candidates per generation"),
+              "noise_std": ("--es-noise-std", float, "SIGMA", "the std of the parameter perturbations"),
+              "seasons": ("--es-seasons", int, "N", "training seasons every candidate of a generation runs (the same "
+                                                    "for all)")}
+
+
+def add_es_arguments(parser) -> None:
+    for key, (flag, kind, metavar, what) in ES_OPTIONS.items():
+        parser.add_argument(flag, type=kind, default=None, metavar=metavar,
+                            help=f"with --algorithm es: {what} (default {ES_DEFAULTS[key]:g})")
+
+
+def es_options_given(args) -> list[str]:
+    """The ES options given on the command line (their flags)."""
+    return [flag for key, (flag, *_) in ES_OPTIONS.items() if getattr(args, f"es_{key}", None) is not None]
 
 
 class ActorVector:
@@ -147,7 +163,7 @@ class Adam:
 
 def es_settings(args) -> dict:
     """The run's ES settings: the options given, else ES_DEFAULTS."""
-    given = {"pairs": args.es_pairs, "noise_std": args.es_noise_std, "seasons": args.es_seasons}
+    given = {key: getattr(args, f"es_{key}") for key in ES_OPTIONS}
     return {k: ES_DEFAULTS[k] if v is None else v for k, v in given.items()}
 
 

@@ -408,6 +408,7 @@ MAX_TRAINING_FIELDS = 100_000
 
 def run(args) -> int:
     from crop_sim_ros.usage import UsageError
+    from .evolution import es_options_given
     for name, value, high in (("--timesteps", args.timesteps, MAX_TIMESTEPS), ("--n-envs", args.n_envs, MAX_TRAINING_FIELDS),
                               ("--n-steps", args.n_steps, 100_000), ("--batch-size", args.batch_size, 10_000_000),
                               ("--eval-freq", args.eval_freq, MAX_TIMESTEPS),
@@ -430,8 +431,7 @@ def run(args) -> int:
         ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
         ("--action-noise", getattr(args, "action_noise", None) is not None),
         ("--gradient-steps", getattr(args, "gradient_steps", None) is not None),
-        *((flag, getattr(args, name, None) is not None) for flag, name in (
-            ("--es-pairs", "es_pairs"), ("--es-noise-std", "es_noise_std"), ("--es-seasons", "es_seasons"))),
+        *((flag, True) for flag in es_options_given(args)),
         (f"--algorithm {getattr(args, 'algorithm', 'ppo')}", getattr(args, "algorithm", "ppo") != "ppo")) if given]
     if family_only:
         raise UsageError(f"{', '.join(family_only)}: with --task only (a family task's agent)")

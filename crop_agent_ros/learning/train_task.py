@@ -33,7 +33,7 @@ import numpy as np
 
 from .train import silent_logger, validation_scenario
 from .agent import ACTION_KINDS, ACTION_SCALE_MM, ALGORITHMS, RESIDUAL_SPAN_MM, AgentInterface, ObservationScaler
-from .evolution import ES_DEFAULTS, es_settings
+from .evolution import add_es_arguments, es_options_given, es_settings
 
 REWARD_SCALE_USD = 1000.0
 TRAINING_KINDS = ("generator", "mixture")
@@ -73,15 +73,7 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--gradient-steps", type=int, default=None, metavar="N",
                         help="with --algorithm td3: gradient steps after each step of the fields (--n-envs "
                              f"field-days; default {TD3_DEFAULTS['gradient_steps']})")
-    parser.add_argument("--es-pairs", type=int, default=None, metavar="N",
-                        help="with --algorithm es: antithetic pairs of candidates per generation (default "
-                             f"{ES_DEFAULTS['pairs']})")
-    parser.add_argument("--es-noise-std", type=float, default=None, metavar="SIGMA",
-                        help="with --algorithm es: the std of the parameter perturbations (default "
-                             f"{ES_DEFAULTS['noise_std']:g})")
-    parser.add_argument("--es-seasons", type=int, default=None, metavar="N",
-                        help="with --algorithm es: training seasons every candidate of a generation runs (the same "
-                             f"for all; default {ES_DEFAULTS['seasons']})")
+    add_es_arguments(parser)
     parser.add_argument("--training-seasons", type=int, default=None, metavar="N",
                         help="with --task on a generated task: train on a pool of N seasons drawn by the task's "
                              "generator (default: the task's own pool of 1,000)")
@@ -166,9 +158,7 @@ def check_options(args) -> None:
         raise UsageError(f"{', '.join(ppo_only)}: for PPO only, not --algorithm {args.algorithm}")
     td3_only = [flag for flag, value in (("--action-noise", args.action_noise),
                                          ("--gradient-steps", args.gradient_steps)) if value is not None]
-    es_only = [flag for flag, value in (("--es-pairs", args.es_pairs), ("--es-noise-std", args.es_noise_std),
-                                        ("--es-seasons", args.es_seasons)) if value is not None]
-    for algorithm, flags in (("td3", td3_only), ("es", es_only)):
+    for algorithm, flags in (("td3", td3_only), ("es", es_options_given(args))):
         if args.algorithm != algorithm and flags:
             raise UsageError(f"{', '.join(flags)}: for --algorithm {algorithm} only")
     if args.algorithm == "td3":
