@@ -91,22 +91,24 @@ def test_run_farm_grows_a_family_season_with_a_committed_agent(tmp_path):
     assert any(float(r["obs_paw_observed"]) == 0.0 for r in rows)  # the agent met missing readings
 
 
-def test_run_farm_grows_a_season_with_a_committed_outlook_agent(tmp_path):
-    """The held-out-climate agent (it reads a climate outlook) over ROS: the agent node takes the season's
-    climate and sowing date from the reset (here Benton sown March 1, a climates3-quota part) and irrigates
-    exactly as the same agent offline."""
+@pytest.mark.parametrize("run, task", [("climates3-quota-imitation-outlook-dagger-s0", "climates3-quota"),
+                                       ("benton-quota-es-s0", "benton-quota")])
+def test_run_farm_grows_a_season_with_a_committed_agent_as_offline(tmp_path, run, task):
+    """Committed agents over ROS irrigate exactly as offline: the held-out-climate agent (it reads a climate
+    outlook; the agent node takes the season's climate and sowing date from the reset, here Benton sown March 1,
+    a climates3-quota part) and the evolution strategies agent (its network in a PPO policy file)."""
     from crop_agent_ros.learning.agent import LearnedPolicy
     from crop_sim_ros.task import IrrigationEnv
 
-    agent = ros_support.REPO / "results/family/agents/climates3-quota-imitation-outlook-dagger-s0/model.zip"
+    agent = ros_support.REPO / f"results/family/agents/{run}/model.zip"
     done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--policy", "agent", "--policy-file",
-                           str(agent), "--scenario", "climates3-quota", "--json", "--no-plot",
+                           str(agent), "--scenario", task, "--json", "--no-plot",
                            "--domain-id", str(isolated_ros_env()["ROS_DOMAIN_ID"])],
                           env=isolated_ros_env(), capture_output=True, text=True, timeout=300, cwd=ros_support.REPO)
     assert done.returncode == 0, done.stdout + done.stderr
     (summary,) = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
     policy = LearnedPolicy(agent)
-    env = IrrigationEnv("climates3-quota")
+    env = IrrigationEnv(task)
     policy.reset(None)
     obs, info = env.reset(seed=0)
     policy.begin_field_season(info["weather_source"], info["date"])
@@ -114,7 +116,9 @@ def test_run_farm_grows_a_season_with_a_committed_outlook_agent(tmp_path):
     while not done_:
         obs, reward, terminated, truncated, step = env.step(policy.act(obs))
         total, water, done_ = total + reward, water + step["irrigation_applied_mm"], terminated or truncated
-    assert policy.outlook.climates == ["benton"] and summary["weather"] == info["weather_source"]
+    if policy.outlook is not None:
+        assert policy.outlook.climates == ["benton"]
+    assert summary["weather"] == info["weather_source"]
     assert summary["matured"] and (summary["return"], summary["irrigation_mm"]) == (total, water) and water > 0
 
 
