@@ -93,7 +93,7 @@ def actor_outputs(layers: list[tuple[np.ndarray, np.ndarray]], inputs: np.ndarra
     (the mean action, before the [-1, 1] clip), as SB3's deterministic ``predict``."""
     h = inputs
     for j, (weight, bias) in enumerate(layers):
-        h = np.einsum("pbi,pio->pbo", h, weight) + bias[:, None, :]
+        h = h @ weight + bias[:, None, :]
         if j < len(layers) - 1:
             h = np.tanh(h)
     return h[..., 0]
