@@ -1,10 +1,11 @@
-"""``crop-sim train --task TASK``: train a family agent (PPO, or RecurrentPPO) on a family task's training
-seasons (generated weather only; the held-out real seasons and the held-out climate are never seen).
+"""``crop-sim train --task TASK``: train a family agent (PPO, RecurrentPPO, TD3, or evolution strategies:
+:mod:`.evolution`) on a family task's training seasons (generated weather only; the held-out real seasons and
+the held-out climate are never seen).
 
 The network's observation and action are those of :mod:`crop_agent_ros.learning.agent` (normalised raw
 observation, action in mm; ``--action residual``: a correction of the task's tuned rule, ``family_<task>.json``,
 whose parameters are saved with the policy, with a zero-initialised last layer so that training starts at the
-rule). Training reward: the task's reward (USD/ha) divided by ``REWARD_SCALE_USD`` and
+rule). Training reward of the gradient learners: the task's reward (USD/ha) divided by ``REWARD_SCALE_USD`` and
 shaped by a potential (Ng et al. 1999), Phi(s) = the value of the yield the crop would give if harvested
 now (tuber price / dry-matter fraction x harvest index x true biomass), 0 at the season's end: the yield paid
 at harvest is spread over the days that grew it; the optimal policy is unchanged, and every evaluation
