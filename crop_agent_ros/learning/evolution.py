@@ -167,10 +167,12 @@ def es_settings(args) -> dict:
     return {k: ES_DEFAULTS[k] if v is None else v for k, v in given.items()}
 
 
-def evolve(model, interface: AgentInterface, scenario, args, checkpoint, progress=None) -> int:
-    """Run ES on ``model``'s actor for ``args.timesteps`` field-days of ``scenario``'s training seasons;
-    ``checkpoint(steps)`` is called with the current parameters in ``model`` at 1 % of the budget, every
-    ``args.eval_freq`` field-days and at the end. Returns the field-days run."""
+def evolve(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
+    """Run ES on ``model``'s actor for ``args.timesteps`` field-days of ``scenario``'s training seasons (at most
+    one generation more); ``checkpoint(steps, early)`` is called with the current parameters in ``model`` at the
+    start, at the first generation past 1 % of the budget (``early`` True), and then every ``args.eval_freq``
+    field-days; the caller checkpoints the end. Returns the field-days run, with the final parameters in
+    ``model``."""
     from ..policies.rollout import run_episodes, season_contexts
     from ..policies.family_tuning import draw_terms
 
@@ -184,9 +186,8 @@ def evolve(model, interface: AgentInterface, scenario, args, checkpoint, progres
     contexts = season_contexts(scenario) if interface.outlook is not None else None
     lr0, lr1 = args.learning_rate, args.final_learning_rate
     early_at = max(1, args.timesteps // 100)
-    steps, next_eval, early_done = 0, 0, False
+    steps, next_eval, early_done = 0, args.eval_freq, False
     checkpoint(0, early=False)
-    next_eval += args.eval_freq
     while steps < args.timesteps:
         seasons = rng.choice(n_pool, seasons_each, replace=False)
         terms = draw_terms(scenario, seasons, int(rng.integers(2 ** 31)))
@@ -201,8 +202,6 @@ def evolve(model, interface: AgentInterface, scenario, args, checkpoint, progres
         done = min(1.0, steps / args.timesteps)
         theta = theta + adam.step(antithetic_gradient(fitness, noise, noise_std), lr0 + (lr1 - lr0) * done)
         steps += int(episodes.days.sum())
-        if progress is not None:
-            progress(steps, float(fitness.mean()))
         if not early_done and steps >= early_at:
             early_done = True
             actor.set(theta)

@@ -308,8 +308,8 @@ def train_task(args) -> dict:
     from ..policies.family_tuning import draw_terms, rule_file, rule_record, tuned_rule
     from ..policies.rollout import run_episodes
     from .agent import LearnedPolicy
-
     from .train import fill_learning_rates
+
     torch.set_num_threads(1)
     launched = time.perf_counter()
     fill_learning_rates(args)
@@ -322,10 +322,9 @@ def train_task(args) -> dict:
                          "only (real seasons and the held-out climate are for evaluation)")
     check_options(args)
     scenario = training_pool(scenario, args.training_seasons)
-    if args.algorithm == "es" and es_settings(args)["seasons"] > scenario.n_seasons:
+    if args.algorithm == "es" and (seasons_each := es_settings(args)["seasons"]) > scenario.n_seasons:
         from crop_sim_ros.usage import UsageError
-        raise UsageError(f"--es-seasons {es_settings(args)['seasons']}: the training pool has {scenario.n_seasons} "
-                         "seasons")
+        raise UsageError(f"--es-seasons {seasons_each}: the training pool has {scenario.n_seasons} seasons")
     out = Path(args.out) if args.out else Path("runs") / f"{args.task}-{args.algorithm}-s{args.seed}"
     out.mkdir(parents=True, exist_ok=True)
     params = core.task_params(scenario)
@@ -429,13 +428,13 @@ def train_task(args) -> dict:
         return path
 
     rows: list[dict] = []
-    started = [None]
+    started: float | None = None  # when training started (training_starts)
 
     def checkpoint(model_, steps: int) -> None:
         """Save the policy as ``checkpoint_<steps>`` and add its validation row to the curve."""
         path = save(model_, f"checkpoint_{steps:09d}", steps)
         episodes = run_episodes(LearnedPolicy(path), validation, seasons, seed=1000, terms=terms)
-        row = {"timesteps": int(steps), "wall_s": round(time.perf_counter() - started[0], 1),
+        row = {"timesteps": int(steps), "wall_s": round(time.perf_counter() - started, 1),
                "validation_return": float(episodes.episode_return.mean()),
                "validation_minus_default_rule": float(episodes.episode_return.mean() - rule_return),
                "validation_water_mm": float(episodes.water_mm.mean())}
@@ -446,9 +445,10 @@ def train_task(args) -> dict:
               file=sys.stderr, flush=True)
 
     def training_starts() -> None:
-        if started[0] is None:  # (a critic warm-up trains in two calls)
-            started[0] = time.perf_counter()
-            print(f"training starts {started[0] - launched:.1f} s after launch", file=sys.stderr, flush=True)
+        nonlocal started
+        if started is None:  # (a critic warm-up trains in two calls)
+            started = time.perf_counter()
+            print(f"training starts {started - launched:.1f} s after launch", file=sys.stderr, flush=True)
 
     early_at = max(args.n_envs * args.n_steps, args.timesteps // 100)
     if imitation is not None:
@@ -501,7 +501,7 @@ def train_task(args) -> dict:
         model.learn(total_timesteps=args.timesteps - model.num_timesteps, callback=callback,
                     progress_bar=not args.no_progress, reset_num_timesteps=not warmup)
         steps_run = int(model.num_timesteps)
-    training_s = time.perf_counter() - started[0]
+    training_s = time.perf_counter() - started
     checkpoint(model, steps_run)
     save(model, "final_model", steps_run)
     with open(out / "learning_curve.csv", "w", newline="") as f:
