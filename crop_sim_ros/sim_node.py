@@ -76,7 +76,8 @@ SIGINT and SIGTERM stop the node at any moment: the callback under way (a step, 
 last day's topics go out, the season log is closed, and the process exits with status 0, without a
 traceback (within ``EXIT_WITHIN_S`` of the log's closing, even if rclpy's teardown hangs). A bad start
 (unknown scenario or crop, a scenario file that is not a scenario, a value out of its range, a broken weather
-file, an unusable log path, an unknown command-line argument) is one line on stderr and exit status 2. An
+file, an unusable log path, an unknown command-line argument) is one line on stderr and exit status 2 (within
+``EXIT_WITHIN_S`` of that line). An
 unknown ``-p name:=value`` is a warning naming it and the known parameters.
 
 Parameters: see :data:`PARAMETERS` (``sim_node --help``, ``ros2 param describe /crop_sim <name>``). Changes
@@ -95,7 +96,7 @@ from typing import NamedTuple
 
 from crop_sim_ros.usage import exit_within, node_arguments
 
-EXIT_WITHIN_S = 10.0  # after a signal, once the season log is closed, the process is gone within this
+EXIT_WITHIN_S = 10.0  # after a signal once the season log is closed, or after a bad start: gone within this
 
 NODE_NAME = "crop_sim"
 MODES = ("lockstep", "free_running")
@@ -206,6 +207,7 @@ def _run(argv: list[str], stop: _StopRequest) -> int:
             node = SimNode()
         except Exception as error:  # noqa: BLE001 - bad parameters, scenario, weather or log path: one line, exit 2
             rclpy.logging.get_logger(NODE_NAME).fatal(f"cannot start: {one_line(error)}")
+            exit_within(EXIT_WITHIN_S, status=2)  # said all it had to: gone in bounded time, whatever the teardown
             return 2
         executor = SingleThreadedExecutor()  # one thread: callbacks run one at a time
         executor.add_node(node)

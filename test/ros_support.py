@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import time
 import uuid
 from pathlib import Path
 
@@ -55,6 +56,15 @@ def start_sim(tmp_path: Path, namespace: str | None = None, params: dict | None 
     process = NodeProcess("crop_sim_ros.sim_node", ros_args=ros_args, env=isolated_ros_env(),
                           name="sim_node", log_path=tmp_path / f"sim_node_{uuid.uuid4().hex[:4]}.out")
     return process, f"{namespace}/crop_sim", log
+
+
+def wait_for(condition, timeout: float, what: str, step: float = 0.01) -> None:
+    """Poll ``condition`` every ``step`` seconds; TimeoutError naming ``what`` after ``timeout`` seconds."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
+        time.sleep(step)
 
 
 def read_log(path: Path) -> list[dict]:

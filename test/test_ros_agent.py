@@ -26,6 +26,7 @@ from crop_agent_ros.ros.spin import PrivateRos, call, wait_for_service  # noqa: 
 from crop_agent_ros.ros.process import NodeProcess, isolated_ros_env  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
 from policy_files import ppo_file  # noqa: E402
+from ros_support import wait_for  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -120,14 +121,6 @@ def test_run_farm_grows_a_season_with_a_committed_agent_as_offline(tmp_path, run
         assert policy.outlook.climates == ["benton"]
     assert summary["weather"] == info["weather_source"]
     assert summary["matured"] and (summary["return"], summary["irrigation_mm"]) == (total, water) and water > 0
-
-
-def wait_for(condition, timeout: float, what: str, step: float = 0.01) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(step)
 
 
 def catches_sigterm(pid: int) -> bool:

@@ -26,10 +26,11 @@ from std_msgs.msg import Float32MultiArray, Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from crop_agent_ros.ros.spin import PrivateRos, call  # noqa: E402
-from crop_agent_ros.ros.process import NodeProcess, _shm_files_of, clean_dead_ports, isolated_ros_env  # noqa: E402
+from crop_agent_ros.ros.process import (NodeProcess, StillRunning, _shm_files_of, clean_dead_ports,  # noqa: E402
+                                        isolated_ros_env)
 from crop_agent_ros.ros.sim_client import SimError  # noqa: E402
 from crop_sim_ros import ros_interface as ri  # noqa: E402
-from ros_support import connect, raw_step, ros, set_parameter, step_client  # noqa: E402, F401 (ros: a fixture)
+from ros_support import connect, raw_step, ros, set_parameter, step_client, wait_for  # noqa: E402, F401 (ros: a fixture)
 
 pytestmark = pytest.mark.slow
 
@@ -434,6 +435,25 @@ def test_sim_killed_and_restarted_keeps_its_log(tmp_path, ros):
     assert len(rows) == len(first) + 5 and rows[:len(first)] == first
     runs = {r["run_id"] for r in rows}
     assert len(runs) == 2 and log.read_text().count("wall_time_utc") == 1
+
+
+def test_a_process_that_outlives_its_wait_says_where_it_hangs(tmp_path):
+    """A child still running when a test's wait expires prints its stacks and is gone: a rare hang (a node
+    past its exit line, once in CI) names its frame in the failure instead of only the timeout."""
+    (tmp_path / "hangs_here.py").write_text("import time\n\ndef wait_forever():\n    time.sleep(600)\n\n"
+                                            "print('started', flush=True)\nwait_forever()\n")
+    env = isolated_ros_env()
+    env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), env["PYTHONPATH"]])
+    process = NodeProcess("hangs_here", env=env, log_path=tmp_path / "hangs_here.out")
+    try:
+        wait_for(lambda: "started" in process.output(), 60, "the child to start")
+        with pytest.raises(StillRunning) as raised:
+            process.wait(0.5)
+        assert process.poll() is not None, "the hung process is gone"
+        assert "wait_forever" in raised.value.output and "hangs_here.py" in raised.value.output
+        assert "wait_forever" in str(raised.value)
+    finally:
+        process.stop()
 
 
 def test_free_running_mode_steps_by_itself_and_counts_days_without_a_command(shared_sim, ros):

@@ -36,7 +36,7 @@ from crop_sim_ros import sim_node  # noqa: E402
 from crop_sim_ros.season_log import LOG_COLUMNS  # noqa: E402
 from crop_sim_ros.task import get_scenario  # noqa: E402
 from crop_sim_ros.task.scenario import find_data_dir  # noqa: E402
-from ros_support import connect, raw_step, ros, set_parameter, status_reader  # noqa: E402, F401 (ros: a fixture)
+from ros_support import connect, raw_step, ros, set_parameter, status_reader, wait_for  # noqa: E402, F401 (ros: a fixture)
 
 pytestmark = pytest.mark.slow
 REPO = ros_support.REPO
@@ -58,14 +58,6 @@ def popen_sim(ros_args: list[str], out: Path, cwd: Path = REPO, env: dict | None
         return subprocess.Popen([sys.executable, "-m", "crop_sim_ros.sim_node", "--ros-args", *ros_args],
                                 env=env if env is not None else isolated_ros_env(), cwd=cwd, stdout=output,
                                 stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=preexec_fn)
-
-
-def wait_for(condition, timeout: float, what: str, step: float = 0.01) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(step)
 
 
 def stop(process: subprocess.Popen, signum=signal.SIGINT, timeout: float = 20.0) -> int:

@@ -35,7 +35,8 @@ Exit status: 0 when done, and on SIGINT or SIGTERM whenever it lands (the node s
 fraction of a second, or after loading its policy; without a traceback; within 10 s in any case; a second
 signal during the shutdown is ignored); 2 when it cannot start (bad parameters, an
 unknown policy, a policy file that is missing or not for this task, a policy that cannot read the simulator's
-observation: one line); 1 when the simulator failed or did not answer within ``timeout``.
+observation: one line); 1 when the simulator failed or did not answer within ``timeout``. Whatever the status,
+the process is gone within 10 s of its last line, even if rclpy's teardown hangs.
 ``agent_node --help`` prints the parameters and exits.
 """
 
@@ -125,8 +126,11 @@ def main(args: list[str] | None = None) -> int:
 
 
 def _unless_stopped(status: int) -> int:
-    """``status``, or 0 when a signal has arrived (the node was stopping anyway)."""
-    return 0 if _stopped_by is not None else status
+    """``status``, or 0 when a signal has arrived (the node was stopping anyway). The node has said why it
+    ends: the process is gone within ``EXIT_WITHIN_S``, whatever the clean-up waits on."""
+    status = 0 if _stopped_by is not None else status
+    exit_within(EXIT_WITHIN_S, status=status)
+    return status
 
 
 def _run(argv: list[str]) -> int:

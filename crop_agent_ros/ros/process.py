@@ -10,7 +10,9 @@ Used by :mod:`.farm` (one command that grows a season over ROS), :mod:`.bench` a
   down cleanly on it), then SIGKILL after a grace period; ``kill()`` sends SIGKILL at once.
   After a SIGKILL, Fast DDS leaves its shared-memory files in /dev/shm: ``NodeProcess`` notes the files
   its own process owns (the segments whose lock files it holds) before killing it and removes, once it is
-  dead, only those that no other live process also owns (a shared port).
+  dead, only those that no other live process also owns (a shared port). ``wait(timeout)`` on a process that
+  is still running when it expires has it print where it is (Python's fault handler, on SIGABRT) before it
+  raises :class:`StillRunning` with that output: a hang names its own frame.
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ def isolated_ros_env(domain_id: int | None = None, base: dict | None = None) -> 
         env["PYTHONPATH"] = os.pathsep.join(p for p in (str(REPO_ROOT), path) if p)
     env.setdefault("PYTHONUNBUFFERED", "1")
     env.setdefault("RCUTILS_COLORIZED_OUTPUT", "0")
+    env.setdefault("PYTHONFAULTHANDLER", "1")  # SIGABRT prints every thread's stack: NodeProcess.wait uses it
     return env
 
 
@@ -176,6 +179,13 @@ def clean_dead_ports() -> list[str]:
 atexit.register(clean_dead_ports)
 
 
+class StillRunning(subprocess.TimeoutExpired):
+    """A child process outlived a wait; ``output`` holds what it printed, its stacks at the end."""
+
+    def __str__(self) -> str:
+        return f"{super().__str__()}; what it printed, ending with its stacks:\n{self.output}"
+
+
 class NodeProcess:
     """A ROS node (or any Python module) in a child process."""
 
@@ -213,7 +223,21 @@ class NodeProcess:
         return ""
 
     def wait(self, timeout: float | None = None) -> int:
-        return self.process.wait(timeout)
+        """The exit status. A process still running after ``timeout`` seconds is asked for its stacks (SIGABRT:
+        the fault handler prints them, then the process dies) and :class:`StillRunning` is raised."""
+        try:
+            return self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self._remember_shm()
+            self.process.send_signal(signal.SIGABRT)
+            try:
+                self.process.wait(10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+            self._killed = True
+            self._cleanup_shm()
+            raise StillRunning(self.command, timeout, output=self.output()) from None
 
     def _remember_shm(self) -> None:
         # the bootstrapper exec()s in place, so the pid stays the node's pid
@@ -244,12 +268,15 @@ class NodeProcess:
         self._cleanup()
         return self.process.returncode
 
-    def _cleanup(self) -> None:
+    def _cleanup_shm(self) -> None:
         if self._killed:
             clean_shm_files(self._shm, {self.pid})
             _DEAD_PORTS.update(self._ports)
             clean_dead_ports()
         self._shm, self._ports = set(), set()
+
+    def _cleanup(self) -> None:
+        self._cleanup_shm()
         if self._log:
             self._log.close()
             self._log = None
