@@ -136,3 +136,19 @@ def test_es_refuses_other_algorithms_options_and_out_of_range_settings(tmp_path)
         tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "es", "--es-seasons", "50",
                            "--training-seasons", "40")
     assert not (tmp_path / "x" / "model.zip").exists()
+
+
+def test_each_algorithm_fills_the_budget_options_not_given_with_its_own_recipe():
+    """`crop-sim train --task T --algorithm es` alone is the README's ES recipe; given values are kept."""
+    import argparse
+    from crop_agent_ros.learning import train
+    parser = argparse.ArgumentParser()
+    train.add_arguments(parser)
+    es = parser.parse_args(["--task", "benton-quota", "--algorithm", "es"])
+    train.fill_algorithm_defaults(es)
+    assert (es.timesteps, es.eval_freq, es.validation_seasons, es.net_arch, es.learning_rate,
+            es.final_learning_rate) == (170_000_000, 10_000_000, 32, "64,64", 0.02, 0.002)
+    ppo = parser.parse_args(["--task", "benton-quota", "--timesteps", "5000", "--net-arch", "16"])
+    train.fill_algorithm_defaults(ppo)
+    assert (ppo.timesteps, ppo.eval_freq, ppo.validation_seasons, ppo.net_arch, ppo.learning_rate,
+            ppo.final_learning_rate) == (5000, 250_000, 64, "16", 1e-4, 1e-5)

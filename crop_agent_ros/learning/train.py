@@ -35,18 +35,29 @@ import numpy as np
 HELD_OUT = ("heldout", "benton-2000", "paterson-1992", "paterson-1993", "paterson-1994", "paterson-1995")
 
 
-# (first, final) learning rate when not given: the gradient learners' (PPO, RecurrentPPO, TD3) and the
-# evolution strategies' (an Adam step on the parameters themselves, crop_agent_ros.learning.evolution)
-LEARNING_RATES = {"gradient": (1e-4, 1e-5), "es": (0.02, 0.002)}
+# The defaults of the options below that depend on the algorithm, used when an option is not given: the gradient
+# learners' (PPO, RecurrentPPO, TD3: the paper task's recipe) and the evolution strategies' (the family tasks'
+# headline recipe, README "Evolution strategies": its learning rate is an Adam step on the parameters themselves,
+# crop_agent_ros.learning.evolution; a generation is ~340,000 field-days, so its budget is in 100 M steps).
+ALGORITHM_DEFAULTS = {
+    "gradient": {"timesteps": 3_000_000, "eval_freq": 250_000, "validation_seasons": 64, "net_arch": "32,32",
+                 "learning_rate": 1e-4, "final_learning_rate": 1e-5},
+    "es": {"timesteps": 170_000_000, "eval_freq": 10_000_000, "validation_seasons": 32, "net_arch": "64,64",
+           "learning_rate": 0.02, "final_learning_rate": 0.002},
+}
 
 
-def fill_learning_rates(args) -> None:
-    """``--learning-rate`` / ``--final-learning-rate`` not given: the defaults of the run's algorithm."""
-    first, final = LEARNING_RATES["es" if getattr(args, "algorithm", "ppo") == "es" else "gradient"]
-    if args.learning_rate is None:
-        args.learning_rate = first
-    if args.final_learning_rate is None:
-        args.final_learning_rate = final
+def fill_algorithm_defaults(args) -> None:
+    """Each option of :data:`ALGORITHM_DEFAULTS` not given: the default of the run's algorithm."""
+    defaults = ALGORITHM_DEFAULTS["es" if getattr(args, "algorithm", "ppo") == "es" else "gradient"]
+    for name, value in defaults.items():
+        if getattr(args, name) is None:
+            setattr(args, name, value)
+
+
+def _default_help(name: str) -> str:
+    gradient, es = ALGORITHM_DEFAULTS["gradient"][name], ALGORITHM_DEFAULTS["es"][name]
+    return f"default {gradient:,}; --algorithm es: {es:,}" if isinstance(es, int) else f"default {gradient}; es: {es}"
 
 
 def add_arguments(parser) -> None:
@@ -54,12 +65,15 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", type=Path, default=None, help="output directory (default runs/<name>)")
     parser.add_argument("--scenario", default="benton-generated", help="training scenario (generated weather)")
     parser.add_argument("--eval-scenario", default="heldout", help="held-out seasons for the learning curve")
-    parser.add_argument("--timesteps", type=int, default=3_000_000, help="environment steps (field-days)")
+    parser.add_argument("--timesteps", type=int, default=None,
+                        help=f"environment steps (field-days; {_default_help('timesteps')})")
     parser.add_argument("--n-envs", type=int, default=64, help="fields stepped together")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--eval-freq", type=int, default=250_000, help="steps between evaluations")
+    parser.add_argument("--eval-freq", type=int, default=None,
+                        help=f"steps between evaluations ({_default_help('eval_freq')})")
     parser.add_argument("--eval-seeds", type=int, default=4, help="noise seeds per evaluation")
-    parser.add_argument("--validation-seasons", type=int, default=64, help="fresh generated validation seasons")
+    parser.add_argument("--validation-seasons", type=int, default=None,
+                        help=f"fresh generated validation seasons ({_default_help('validation_seasons')})")
     parser.add_argument("--action-mode", default="margin", choices=("mm", "target", "margin", "demand"))
     parser.add_argument("--feature-set", default="full", choices=("full", "compact", "phenology"))
     parser.add_argument("--margin-center", type=float, default=4.0, help="margin mode: mm above ET0/0.096 at a=0")
@@ -67,11 +81,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--demand-span", type=float, default=1.0,
                         help="demand mode: the level is (1 + span * a) * ET0/0.096 + margin-center")
     parser.add_argument("--learning-rate", type=float, default=None,
-                        help=f"first learning rate (default {LEARNING_RATES['gradient'][0]:g}; --algorithm es: Adam's "
-                             f"step on the parameters, default {LEARNING_RATES['es'][0]:g})")
+                        help=f"first learning rate ({_default_help('learning_rate')}, Adam's step on the parameters)")
     parser.add_argument("--final-learning-rate", type=float, default=None,
-                        help=f"linear decay to this value (default {LEARNING_RATES['gradient'][1]:g}; es: "
-                             f"{LEARNING_RATES['es'][1]:g})")
+                        help=f"linear decay to this value ({_default_help('final_learning_rate')})")
     parser.add_argument("--n-steps", type=int, default=256, help="rollout length per field")
     parser.add_argument("--batch-size", type=int, default=2048)
     parser.add_argument("--n-epochs", type=int, default=10)
@@ -80,7 +92,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--gae-lambda", type=float, default=0.95)
     parser.add_argument("--clip-range", type=float, default=0.2)
     parser.add_argument("--ent-coef", type=float, default=0.0)
-    parser.add_argument("--net-arch", default="32,32", help="hidden layer sizes, e.g. 64,64")
+    parser.add_argument("--net-arch", default=None, help=f"hidden layer sizes ({_default_help('net_arch')})")
     parser.add_argument("--log-std-init", type=float, default=-2.5)
     parser.add_argument("--reward-shaping", default="biomass", choices=("none", "biomass"),
                         help="potential-based shaping of the training reward (evaluation: true reward)")
@@ -221,7 +233,7 @@ def plot_curve(rows: list[dict], path: Path, title: str) -> None:
 
 def train(args) -> dict:
     import torch
-    fill_learning_rates(args)
+    fill_algorithm_defaults(args)
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from ..policies.oracle import OraclePolicy
@@ -409,6 +421,7 @@ MAX_TRAINING_FIELDS = 100_000
 def run(args) -> int:
     from crop_sim_ros.usage import UsageError
     from .evolution import es_options_given
+    fill_algorithm_defaults(args)
     for name, value, high in (("--timesteps", args.timesteps, MAX_TIMESTEPS), ("--n-envs", args.n_envs, MAX_TRAINING_FIELDS),
                               ("--n-steps", args.n_steps, 100_000), ("--batch-size", args.batch_size, 10_000_000),
                               ("--eval-freq", args.eval_freq, MAX_TIMESTEPS),

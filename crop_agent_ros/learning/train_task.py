@@ -308,11 +308,11 @@ def train_task(args) -> dict:
     from ..policies.family_tuning import draw_terms, rule_file, rule_record, tuned_rule
     from ..policies.rollout import run_episodes
     from .agent import LearnedPolicy
-    from .train import fill_learning_rates
+    from .train import fill_algorithm_defaults
 
     torch.set_num_threads(1)
     launched = time.perf_counter()
-    fill_learning_rates(args)
+    fill_algorithm_defaults(args)
     scenario = get_scenario(args.task)
     if not scenario.is_family_task:
         raise SystemExit(f"crop-sim train: {args.task!r} is not a family task (its observation has 20 values); "
