@@ -122,8 +122,10 @@ def test_a_tiny_es_run_improves_reproduces_and_loads_as_a_family_agent(tmp_path)
 
 def test_es_refuses_other_algorithms_options_and_out_of_range_settings(tmp_path):
     from crop_sim_ros.usage import UsageError
-    with pytest.raises(UsageError, match="--imitate, --sde: for PPO only, not --algorithm es"):
-        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "es", "--sde", "0", "--imitate", "x.npz")
+    with pytest.raises(UsageError, match="--sde, --critic-warmup: for PPO only, not --algorithm es"):
+        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "es", "--sde", "0", "--critic-warmup", "9")
+    with pytest.raises(UsageError, match="--imitate: for PPO and --algorithm es only, not --algorithm td3"):
+        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "td3", "--imitate", "x.npz")
     with pytest.raises(UsageError, match="--action-noise: for --algorithm td3 only"):
         tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "es", "--action-noise", "0.1")
     with pytest.raises(UsageError, match="--es-pairs, --es-seasons: for --algorithm es only"):

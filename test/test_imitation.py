@@ -252,6 +252,29 @@ def test_train_imitate_writes_a_policy_that_acts_like_its_demonstrations(tmp_pat
     assert early_error.mean() > 2.0 * error.mean()
 
 
+def test_es_after_cloning_starts_from_the_cloned_network_and_keeps_the_clonings_1_percent_policy(tmp_path,
+                                                                                               demonstrations):
+    """--imitate with --algorithm es: the same cloning as PPO's (same seed), then ES moves the cloned network."""
+    from crop_agent_ros.learning.evolution import ActorVector
+    np.savez_compressed(tmp_path / "demo.npz", **demonstrations)
+    cloning = ("--imitate", str(tmp_path / "demo.npz"), "--imitation-epochs", "20")
+    tiny_task_training(tmp_path / "ppo", "benton-quota", 1, *cloning, timesteps=256, net_arch="16")
+    tiny_task_training(tmp_path / "es", "benton-quota", 1, *cloning, "--algorithm", "es", "--es-pairs", "3",
+                       "--es-seasons", "3", "--es-noise-std", "0.3", "--eval-freq", "40000", timesteps=60_000,
+                       net_arch="16")
+
+    def actor(path):
+        return ActorVector(LearnedPolicy(path).model.policy).get()
+
+    first = {run: sorted((tmp_path / run).glob("checkpoint_*.zip"))[0] for run in ("ppo", "es")}
+    assert first["es"].name == "checkpoint_000000000.zip"
+    np.testing.assert_array_equal(actor(first["es"]), actor(first["ppo"]))  # the cloned network
+    np.testing.assert_array_equal(actor(tmp_path / "es" / "early_model.zip"),  # the cloning's 1 % policy
+                                  actor(tmp_path / "ppo" / "early_model.zip"))
+    assert "after 1 of 20" in json.loads((tmp_path / "es" / "early_model.json").read_text())["imitation"]["early_model"]
+    assert not np.array_equal(actor(tmp_path / "es" / "final_model.zip"), actor(first["es"]))  # ES moved it
+
+
 def test_a_smaller_pivots_demonstrations_train_the_task_and_set_the_capacity_columns_scaling(tmp_path):
     # the planner on a 5.5 mm/d pivot plans within it; its file trains the 8 mm/d task, whose own seasons
     # hold the capacity column constant: the run's scaler takes that column from the demonstrations

@@ -80,7 +80,8 @@ def add_task_arguments(parser) -> None:
                              "generator (default: the task's own pool of 1,000)")
     parser.add_argument("--imitate", nargs="+", default=None, metavar="GLOB",
                         help="with --task: first fit the policy to these demonstrations of the causal MPC "
-                             "(`crop-sim demonstrate`; behaviour cloning), then PPO on the reward (a variant)")
+                             "(`crop-sim demonstrate`; behaviour cloning), then PPO (or --algorithm es) on the "
+                             "reward (a variant)")
     parser.add_argument("--imitation-epochs", type=int, default=100, help="epochs of behaviour cloning")
     parser.add_argument("--imitation-keep-best", action="store_true",
                         help="end the cloning with the epoch of least held-out error, not the last (early stopping)")
@@ -152,11 +153,13 @@ def check_options(args) -> None:
     """UsageError, before any work, for an option the run's algorithm does not have or a value out of range."""
     from crop_sim_ros.usage import UsageError
     ppo_only = [flag for flag, value in (
-        ("--imitate", args.imitate), ("--sde", args.sde is not None), ("--critic-warmup", args.critic_warmup),
+        ("--sde", args.sde is not None), ("--critic-warmup", args.critic_warmup),
         ("--log-std-final", args.log_std_final is not None), ("--action residual", args.action == "residual"))
         if value]
     if args.algorithm in ("td3", "es") and ppo_only:
         raise UsageError(f"{', '.join(ppo_only)}: for PPO only, not --algorithm {args.algorithm}")
+    if args.algorithm == "td3" and args.imitate:  # (es starts from the cloned network, as PPO does)
+        raise UsageError("--imitate: for PPO and --algorithm es only, not --algorithm td3")
     td3_only = [flag for flag, value in (("--action-noise", args.action_noise),
                                          ("--gradient-steps", args.gradient_steps)) if value is not None]
     for algorithm, flags in (("td3", td3_only), ("es", es_options_given(args))):
@@ -486,7 +489,7 @@ def train_task(args) -> dict:
         from .evolution import evolve
 
         def es_checkpoint(steps: int, early: bool) -> None:
-            if early:
+            if early and imitation is None:  # (after cloning, the 1 % policy is the cloning's, saved above)
                 save(model, "early_model", steps)
             checkpoint(model, steps)
 
