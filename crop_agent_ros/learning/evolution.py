@@ -20,7 +20,8 @@ instead of its actions, so every candidate is a deterministic policy and the obj
 The network, its observation and its action are the headline agent's (:mod:`.agent`: normalised raw
 observation, action in mm); it lives in a Stable-Baselines3 PPO policy (the container the policy file and
 :class:`~.agent.LearnedPolicy` load; its value network and exploration scale are unused). The environment steps
-a run uses (``--timesteps``) are field-days of every candidate's seasons.
+a run uses (``--timesteps``) are field-days of every candidate's seasons. ES starts from a fresh network, or
+with ``--imitate`` from the network cloned from a planner's demonstrations (a labelled variant, as with PPO).
 """
 
 from __future__ import annotations
