@@ -438,8 +438,9 @@ def test_sim_killed_and_restarted_keeps_its_log(tmp_path, ros):
 
 
 def test_a_process_that_outlives_its_wait_says_where_it_hangs(tmp_path):
-    """A child still running when a test's wait expires prints its stacks and is gone: a rare hang (a node
-    past its exit line, once in CI) names its frame in the failure instead of only the timeout."""
+    """A child still running when a test's wait expires prints its stacks and is gone: a rare hang (a sim node
+    given a bad scenario that had not exited after 60 s, once in CI) names its frame in the failure instead of
+    only the timeout."""
     (tmp_path / "hangs_here.py").write_text("import time\n\ndef wait_forever():\n    time.sleep(600)\n\n"
                                             "print('started', flush=True)\nwait_forever()\n")
     env = isolated_ros_env()

@@ -232,8 +232,8 @@ def plot_curve(rows: list[dict], path: Path, title: str) -> None:
 
 
 def train(args) -> dict:
+    """The paper task's training; ``args`` as :func:`run` completes them (the algorithm's defaults filled)."""
     import torch
-    fill_algorithm_defaults(args)
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
     from ..policies.oracle import OraclePolicy

@@ -228,15 +228,9 @@ class NodeProcess:
         try:
             return self.process.wait(timeout)
         except subprocess.TimeoutExpired:
-            self._remember_shm()
-            self.process.send_signal(signal.SIGABRT)
-            try:
-                self.process.wait(10)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
-            self._killed = True
-            self._cleanup_shm()
+            self._end(signal.SIGABRT, grace=10.0)
+            self._killed = True  # an aborted process leaves its shared-memory files as a killed one does
+            self._cleanup()
             raise StillRunning(self.command, timeout, output=self.output()) from None
 
     def _remember_shm(self) -> None:
@@ -256,27 +250,28 @@ class NodeProcess:
     def stop(self, grace: float = 5.0) -> int:
         """SIGINT (clean shutdown), SIGKILL after ``grace`` seconds. Returns the exit code."""
         if self.process.poll() is None:
-            self._remember_shm()
-            try:
-                self.process.send_signal(signal.SIGINT)
-                self.process.wait(grace)
-            except subprocess.TimeoutExpired:
-                self._remember_shm()
-                self.process.kill()
-                self.process.wait()
-                self._killed = True
+            self._end(signal.SIGINT, grace)
         self._cleanup()
         return self.process.returncode
 
-    def _cleanup_shm(self) -> None:
+    def _end(self, signum: int, grace: float) -> None:
+        """Send ``signum``; SIGKILL if the process still runs ``grace`` seconds later."""
+        self._remember_shm()
+        try:
+            self.process.send_signal(signum)
+            self.process.wait(grace)
+        except subprocess.TimeoutExpired:
+            self._remember_shm()
+            self.process.kill()
+            self.process.wait()
+            self._killed = True
+
+    def _cleanup(self) -> None:
         if self._killed:
             clean_shm_files(self._shm, {self.pid})
             _DEAD_PORTS.update(self._ports)
             clean_dead_ports()
         self._shm, self._ports = set(), set()
-
-    def _cleanup(self) -> None:
-        self._cleanup_shm()
         if self._log:
             self._log.close()
             self._log = None
