@@ -440,6 +440,7 @@ def run(args) -> int:
         ("--training-seasons", getattr(args, "training_seasons", None) is not None),
         ("--sde", getattr(args, "sde", None) is not None),
         ("--critic-warmup", getattr(args, "critic_warmup", 0) != 0),
+        ("--critic-hindsight", getattr(args, "critic_hindsight", False)),
         ("--log-std-final", getattr(args, "log_std_final", None) is not None),
         ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
         ("--action-noise", getattr(args, "action_noise", None) is not None),

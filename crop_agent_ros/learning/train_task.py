@@ -60,6 +60,11 @@ def add_task_arguments(parser) -> None:
                         help="with --task: generalized state-dependent exploration (gSDE, Raffin et al. 2021) "
                              "instead of independent daily noise: the exploration is a function of the observation "
                              "whose weights are redrawn every DAYS days of each field (0: once per rollout)")
+    parser.add_argument("--critic-hindsight", action="store_true",
+                        help="with --task, PPO: the value network also sees what the field's season still holds (its "
+                             "potential yield, the next days' rain, ET0 and radiation: crop_sim_ros.task.hindsight), "
+                             "so that the weather's luck is in the baseline, not in the advantage; the policy never "
+                             "sees it and the policy files hold the policy alone (an asymmetric critic)")
     parser.add_argument("--critic-warmup", type=int, default=0, metavar="STEPS",
                         help="with --task: for the first STEPS steps only the value network learns (the policy "
                              "acts, unchanged): a critic fitted to a cloned policy before PPO moves it")
@@ -125,7 +130,7 @@ def hyper_parameters(args) -> dict:
                 **{f"es_{k}": v for k, v in es_settings(args).items()}}
     return {**shared, **{k: getattr(args, k) for k in ("n_steps", "n_epochs", "gae_lambda", "clip_range", "ent_coef",
                                                        "log_std_init")},
-            **exploration(args.sde)}
+            "critic_hindsight": bool(args.critic_hindsight), **exploration(args.sde)}
 
 
 def td3_settings(args) -> tuple[float, int]:
@@ -154,10 +159,15 @@ def check_options(args) -> None:
     from crop_sim_ros.usage import UsageError
     ppo_only = [flag for flag, value in (
         ("--sde", args.sde is not None), ("--critic-warmup", args.critic_warmup),
+        ("--critic-hindsight", args.critic_hindsight),
         ("--log-std-final", args.log_std_final is not None), ("--action residual", args.action == "residual"))
         if value]
     if args.algorithm in ("td3", "es") and ppo_only:
         raise UsageError(f"{', '.join(ppo_only)}: for PPO only, not --algorithm {args.algorithm}")
+    if args.critic_hindsight and args.algorithm != "ppo":
+        raise UsageError(f"--critic-hindsight: for PPO only, not --algorithm {args.algorithm}")
+    if args.critic_hindsight and args.imitate:
+        raise UsageError("--critic-hindsight: for PPO from a fresh network, not with --imitate")
     if args.algorithm == "td3" and args.imitate:  # (es starts from the cloned network, as PPO does)
         raise UsageError("--imitate: for PPO and --algorithm es only, not --algorithm td3")
     td3_only = [flag for flag, value in (("--action-noise", args.action_noise),
@@ -224,9 +234,11 @@ def fit_scaler(scenario, seed: int, seasons: int = 64, demonstrations: np.ndarra
 
 
 def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, harvest_index: float,
-                 dry_matter_fraction: float):
+                 dry_matter_fraction: float, hindsight=None):
     """The SB3 VecEnv the network trains on (``interface``'s input in, [-1, 1] action out, scaled shaped
-    reward)."""
+    reward). With ``hindsight`` (a :class:`~.asymmetric.HindsightScaler`), each field's scaled hindsight values
+    of its season and day follow the interface's input (for an asymmetric critic; the actor does not read
+    them)."""
     from gymnasium import spaces
     from stable_baselines3.common.vec_env import VecEnvWrapper
     from crop_sim_ros.task.layout import EXTENDED
@@ -241,8 +253,20 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
     class TaskWrapper(VecEnvWrapper):
         def __init__(self):
             venv = IrrigationSB3VecEnv(n_envs, scenario, seed=seed)
-            super().__init__(venv, observation_space=spaces.Box(-10.0, 10.0, (interface.input_size,), np.float32),
+            extra = 0 if hindsight is None else len(hindsight.mean)
+            super().__init__(venv, observation_space=spaces.Box(-10.0, 10.0, (interface.input_size + extra,),
+                                                                np.float32),
                              action_space=spaces.Box(-1.0, 1.0, (1,), np.float32))
+            self.fields = venv.venv
+
+        def _with_hindsight(self, inputs, season, day):
+            if hindsight is None:
+                return inputs
+            return np.concatenate([inputs, hindsight(season, day)], axis=-1)
+
+        def _where(self):
+            """(season, day) of every field now."""
+            return self.fields.field_seasons, self.fields.field_days
 
         def _value_per_t(self, raw):
             return raw[:, price] / dry_matter_fraction
@@ -258,9 +282,10 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
             interface.reset()
             self._tell_outlook()
             self.phi = np.zeros(self.num_envs)
-            return interface.observe(raw)[0]
+            return self._with_hindsight(interface.observe(raw)[0], *self._where())
 
         def step_async(self, actions):
+            self.before = self._where()  # (the day a field ends on is the day after)
             self.venv.step_async(interface.to_mm(actions).reshape(-1, 1))
 
         def step_wait(self):
@@ -277,8 +302,11 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
                 ended = copy.deepcopy(interface.outlook)  # the ended seasons' climates, for their last inputs
             self._tell_outlook()
             inputs, terminal_inputs = interface.observe(raw, terminal, ended)
+            inputs = self._with_hindsight(inputs, *self._where())
+            season, day = self.before
             for i, terminal_input in terminal_inputs.items():
-                infos[i]["terminal_observation"] = terminal_input
+                infos[i]["terminal_observation"] = self._with_hindsight(terminal_input[None], season[i:i + 1],
+                                                                        day[i:i + 1] + 1)[0]
             return inputs, shaped.astype(np.float32), dones, infos
 
     return TaskWrapper()
@@ -358,8 +386,15 @@ def train_task(args) -> dict:
         from ..policies.outlook import ClimateOutlook
         outlook = ClimateOutlook()
     interface = AgentInterface(scaler, args.history, action_kind, rule, paw_filter, outlook)
+    hindsight = None
+    if args.critic_hindsight:
+        from crop_sim_ros.task.core import scenario_table
+        from crop_sim_ros.task.hindsight import SeasonHindsight
+        from .asymmetric import HindsightScaler
+        table = scenario_table(scenario)
+        hindsight = HindsightScaler(SeasonHindsight(table), table.n_days)
     venv = training_env(scenario, args.n_envs, args.seed, interface, float(params.fields.harvest_index[0]),
-                        params.dry_matter_fraction)
+                        params.dry_matter_fraction, hindsight)
     lr0, lr1 = args.learning_rate, args.final_learning_rate
     common = dict(learning_rate=lambda progress: lr1 + (lr0 - lr1) * progress, n_steps=args.n_steps,
                   batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma, gae_lambda=args.gae_lambda,
@@ -369,8 +404,13 @@ def train_task(args) -> dict:
         model = td3_model(venv, args, net_arch, common["learning_rate"])
     elif args.algorithm in ("ppo", "es"):  # (es: the PPO policy holds the network; PPO never learns)
         from stable_baselines3 import PPO
-        model = PPO("MlpPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init},
-                    **common)
+        policy_kwargs = {"net_arch": net_arch, "log_std_init": args.log_std_init}
+        if hindsight is None:
+            model = PPO("MlpPolicy", venv, policy_kwargs=policy_kwargs, **common)
+        else:
+            from .asymmetric import HindsightCriticPolicy
+            model = PPO(HindsightCriticPolicy, venv, policy_kwargs={**policy_kwargs,
+                                                                    "actor_inputs": interface.input_size}, **common)
     else:
         from sb3_contrib import RecurrentPPO
         model = RecurrentPPO("MlpLstmPolicy", venv, policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init,
@@ -420,12 +460,18 @@ def train_task(args) -> dict:
               **({} if imitation is None else {"imitation": imitation}),
               **({} if paw_filter is None else {"paw_filter": paw_filter.record()}),
               **({} if outlook is None else {"outlook": outlook.record()}),
+              **({} if hindsight is None else {"critic_hindsight": {
+                  **hindsight.record(), "use": "the value network's extra inputs in training; the policy files "
+                                               "hold the policy alone (a fresh, untrained value network)"}}),
               "scaler": {"mean": list(scaler.mean), "std": list(scaler.std)},
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",
               "hyper_parameters": hyper_parameters(args)}
 
     def save(model_, name: str, at: int) -> Path:
         path = out / f"{name}.zip"
+        if hindsight is not None:  # the actor alone, in the headline agent's container
+            from .asymmetric import actor_container
+            model_ = actor_container(model_, interface.input_size, policy_kwargs, exploration(args.sde))
         model_.save(path)
         path.with_suffix(".json").write_text(json.dumps({**config, "timesteps_at_save": at}, indent=1) + "\n")
         return path

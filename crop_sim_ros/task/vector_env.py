@@ -134,6 +134,14 @@ class IrrigationVectorEnv(VectorEnv):
             raise RuntimeError("field_seasons: reset the environment first")
         return np.asarray(self._state.season).copy()
 
+    @property
+    def field_days(self) -> np.ndarray:
+        """Each field's day of its current season (N,), 0 on the sowing day; after an autoreset, 0.
+        RuntimeError before the first reset."""
+        if self._state is None:
+            raise RuntimeError("field_days: reset the environment first")
+        return np.asarray(self._state.crop.days_since_sowing, dtype=np.int64).copy()
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         self._noise_rng = PrefetchedNormal(int(self.np_random.integers(2**63)), self.num_envs,
