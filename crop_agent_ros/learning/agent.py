@@ -69,6 +69,20 @@ def algorithm_class(algorithm: str):
     return RecurrentPPO
 
 
+def network_spaces(input_size: int):
+    """A one-field SB3 VecEnv that only declares the family network's spaces (``input_size`` scaled inputs in
+    [-10, 10], one action in [-1, 1]): what Stable-Baselines3 needs to build a policy that never trains on an
+    environment (evolution strategies' container, an asymmetric-critic run's policy files)."""
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    class Spaces(gym.Env):
+        observation_space = gym.spaces.Box(-10.0, 10.0, (input_size,), np.float32)
+        action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+
+    return DummyVecEnv([Spaces])
+
+
 def action_to_mm(action: np.ndarray) -> np.ndarray:
     """Network actions in [-1, 1] -> irrigation mm in [0, ACTION_SCALE_MM]."""
     return (np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0) + 1.0) * 0.5 * ACTION_SCALE_MM

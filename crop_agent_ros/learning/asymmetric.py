@@ -80,15 +80,10 @@ def actor_container(model, input_size: int, policy_kwargs: dict, exploration: di
     """A standard PPO model (``MlpPolicy`` on ``input_size`` inputs, the run's network layout and exploration)
     holding ``model``'s actor: its policy network, action layer and exploration scale. Its value network is a fresh
     one, never trained (the trained critic needs the hindsight values; acting does not use a critic)."""
-    import gymnasium as gym
     from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import DummyVecEnv
+    from .agent import network_spaces
 
-    class Spaces(gym.Env):
-        observation_space = gym.spaces.Box(-10.0, 10.0, (input_size,), np.float32)
-        action_space = model.action_space
-
-    container = PPO("MlpPolicy", DummyVecEnv([Spaces]), policy_kwargs=policy_kwargs, device="cpu", verbose=0,
+    container = PPO("MlpPolicy", network_spaces(input_size), policy_kwargs=policy_kwargs, device="cpu", verbose=0,
                     seed=0, **exploration)
     source, target = model.policy, container.policy
     target.mlp_extractor.policy_net.load_state_dict(source.mlp_extractor.policy_net.state_dict())

@@ -393,8 +393,12 @@ def train_task(args) -> dict:
         from .asymmetric import HindsightScaler
         table = scenario_table(scenario)
         hindsight = HindsightScaler(SeasonHindsight(table), table.n_days)
-    venv = training_env(scenario, args.n_envs, args.seed, interface, float(params.fields.harvest_index[0]),
-                        params.dry_matter_fraction, hindsight)
+    if args.algorithm == "es":  # ES runs its own candidates' seasons: the network's spaces are all it needs
+        from .agent import network_spaces
+        venv = network_spaces(interface.input_size)
+    else:
+        venv = training_env(scenario, args.n_envs, args.seed, interface, float(params.fields.harvest_index[0]),
+                            params.dry_matter_fraction, hindsight)
     lr0, lr1 = args.learning_rate, args.final_learning_rate
     common = dict(learning_rate=lambda progress: lr1 + (lr0 - lr1) * progress, n_steps=args.n_steps,
                   batch_size=args.batch_size, n_epochs=args.n_epochs, gamma=args.gamma, gae_lambda=args.gae_lambda,
