@@ -10,8 +10,9 @@ instead of its actions, so every candidate is a deterministic policy and the obj
 
 - a generation draws ``seasons`` training seasons (from the task's pool of generated seasons), their episode
   terms and an observation-noise seed; ``pairs`` antithetic candidates theta +- sigma x eps_i each run all of
-  them (the same seasons, terms and noise draw for every candidate: common random numbers, so candidates differ
-  by their parameters, not by their luck);
+  them (the same seasons and terms for every candidate: common random numbers, so candidates differ by their
+  parameters, not by their weather; the observation noise is one stream over all the generation's fields, so each
+  field draws its own);
 - a candidate's fitness is its mean season return (the task's reward, USD/ha, unshaped: no critic, no
   discount, no bootstrap); fitnesses are replaced by centred ranks in [-0.5, 0.5];
 - the gradient estimate sum_i (rank(+i) - rank(-i)) eps_i / (2 n sigma) moves theta by Adam, with a step
