@@ -104,6 +104,7 @@ def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_
                         (["--imitate", "x.npz"], "--imitate"), (["--outlook"], "--outlook"),
                         (["--training-seasons", "5000"], "--training-seasons"), (["--sde", "0"], "--sde"),
                         (["--critic-warmup", "100"], "--critic-warmup"), (["--log-std-final", "-4"], "--log-std-final"),
+                        (["--critic-hindsight"], "--critic-hindsight"),
                         (["--algorithm", "td3"], "--algorithm td3"), (["--gradient-steps", "4"], "--gradient-steps"),
                         (["--algorithm", "es"], "--algorithm es"), (["--es-noise-std", "0.1"], "--es-noise-std")):
         args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
