@@ -51,7 +51,7 @@ ACTION_SCALE_MM = 25.0  # a = 1 asks 25 mm: above any day's need (ET0 <= ~11 mm/
 # rule action (the rule never asks more than the pivot's 8 mm/d) or to add more than a day of a pivot's water,
 # while a unit of the action stays a few mm (the exploration noise, exp(log_std_init) x 10 mm, stays small).
 RESIDUAL_SPAN_MM = 10.0
-ALGORITHMS = ("ppo", "recurrent-ppo", "td3", "es")
+ALGORITHMS = ("ppo", "recurrent-ppo", "td3", "es", "grpo")
 ACTION_KINDS = ("mm", "residual")
 DAY = EXTENDED.index("days_since_sowing")
 
@@ -59,7 +59,7 @@ DAY = EXTENDED.index("days_since_sowing")
 def algorithm_class(algorithm: str):
     """The Stable-Baselines3 class of ``algorithm`` (one of ALGORITHMS), imported on demand (evolution strategies'
     network lives in a PPO policy)."""
-    if algorithm in ("ppo", "es"):
+    if algorithm in ("ppo", "es", "grpo"):
         from stable_baselines3 import PPO
         return PPO
     if algorithm == "td3":

@@ -38,26 +38,31 @@ HELD_OUT = ("heldout", "benton-2000", "paterson-1992", "paterson-1993", "paterso
 # The defaults of the options below that depend on the algorithm, used when an option is not given: the gradient
 # learners' (PPO, RecurrentPPO, TD3: the paper task's recipe) and the evolution strategies' (the family tasks'
 # headline recipe, README "Evolution strategies": its learning rate is an Adam step on the parameters themselves,
-# crop_agent_ros.learning.evolution; a generation is ~340,000 field-days, so its budget is in 100 M steps).
+# crop_agent_ros.learning.evolution; a generation is ~340,000 field-days, so its budget is in 100 M steps) and
+# group-relative PPO's (crop_agent_ros.learning.grpo: an iteration is 128 whole seasons, ~20,000 field-days).
 ALGORITHM_DEFAULTS = {
     "gradient": {"timesteps": 3_000_000, "eval_freq": 250_000, "validation_seasons": 64, "net_arch": "32,32",
                  "learning_rate": 1e-4, "final_learning_rate": 1e-5},
     "es": {"timesteps": 170_000_000, "eval_freq": 10_000_000, "validation_seasons": 32, "net_arch": "64,64",
            "learning_rate": 0.02, "final_learning_rate": 0.002},
+    "grpo": {"timesteps": 12_000_000, "eval_freq": 1_000_000, "validation_seasons": 32, "net_arch": "64,64",
+             "learning_rate": 3e-4, "final_learning_rate": 3e-5},
 }
 
 
 def fill_algorithm_defaults(args) -> None:
     """Each option of :data:`ALGORITHM_DEFAULTS` not given: the default of the run's algorithm."""
-    defaults = ALGORITHM_DEFAULTS["es" if getattr(args, "algorithm", "ppo") == "es" else "gradient"]
+    algorithm = getattr(args, "algorithm", "ppo")
+    defaults = ALGORITHM_DEFAULTS[algorithm if algorithm in ("es", "grpo") else "gradient"]
     for name, value in defaults.items():
         if getattr(args, name) is None:
             setattr(args, name, value)
 
 
 def _default_help(name: str) -> str:
-    gradient, es = ALGORITHM_DEFAULTS["gradient"][name], ALGORITHM_DEFAULTS["es"][name]
-    return f"default {gradient:,}; --algorithm es: {es:,}" if isinstance(es, int) else f"default {gradient}; es: {es}"
+    values = {kind: ALGORITHM_DEFAULTS[kind][name] for kind in ("gradient", "es", "grpo")}
+    shown = {kind: f"{v:,}" if isinstance(v, int) else f"{v}" for kind, v in values.items()}
+    return f"default {shown['gradient']}; --algorithm es: {shown['es']}; grpo: {shown['grpo']}"
 
 
 def add_arguments(parser) -> None:
@@ -421,6 +426,7 @@ MAX_TRAINING_FIELDS = 100_000
 def run(args) -> int:
     from crop_sim_ros.usage import UsageError
     from .evolution import es_options_given
+    from .grpo import grpo_options_given
     fill_algorithm_defaults(args)
     for name, value, high in (("--timesteps", args.timesteps, MAX_TIMESTEPS), ("--n-envs", args.n_envs, MAX_TRAINING_FIELDS),
                               ("--n-steps", args.n_steps, 100_000), ("--batch-size", args.batch_size, 10_000_000),
@@ -445,7 +451,7 @@ def run(args) -> int:
         ("--action residual", getattr(args, "action", "mm") != "mm"), ("--history", getattr(args, "history", 1) != 1),
         ("--action-noise", getattr(args, "action_noise", None) is not None),
         ("--gradient-steps", getattr(args, "gradient_steps", None) is not None),
-        *((flag, True) for flag in es_options_given(args)),
+        *((flag, True) for flag in es_options_given(args)), *((flag, True) for flag in grpo_options_given(args)),
         (f"--algorithm {getattr(args, 'algorithm', 'ppo')}", getattr(args, "algorithm", "ppo") != "ppo")) if given]
     if family_only:
         raise UsageError(f"{', '.join(family_only)}: with --task only (a family task's agent)")

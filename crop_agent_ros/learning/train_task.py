@@ -1,5 +1,5 @@
-"""``crop-sim train --task TASK``: train a family agent (PPO, RecurrentPPO, TD3, or evolution strategies:
-:mod:`.evolution`) on a family task's training seasons (generated weather only; the held-out real seasons and
+"""``crop-sim train --task TASK``: train a family agent (PPO, RecurrentPPO, TD3, evolution strategies:
+:mod:`.evolution`, or PPO with group-relative advantages: :mod:`.grpo`) on a family task's training seasons (generated weather only; the held-out real seasons and
 the held-out climate are never seen).
 
 The network's observation and action are those of :mod:`crop_agent_ros.learning.agent` (normalised raw
@@ -35,6 +35,7 @@ import numpy as np
 from .train import silent_logger, validation_scenario
 from .agent import ACTION_KINDS, ACTION_SCALE_MM, ALGORITHMS, RESIDUAL_SPAN_MM, AgentInterface, ObservationScaler
 from .evolution import add_es_arguments, es_options_given, es_settings
+from .grpo import add_grpo_arguments, grpo_options_given, grpo_settings
 
 REWARD_SCALE_USD = 1000.0
 TRAINING_KINDS = ("generator", "mixture")
@@ -80,6 +81,7 @@ def add_task_arguments(parser) -> None:
                         help="with --algorithm td3: gradient steps after each step of the fields (--n-envs "
                              f"field-days; default {TD3_DEFAULTS['gradient_steps']})")
     add_es_arguments(parser)
+    add_grpo_arguments(parser)
     parser.add_argument("--training-seasons", type=int, default=None, metavar="N",
                         help="with --task on a generated task: train on a pool of N seasons drawn by the task's "
                              "generator (default: the task's own pool of 1,000)")
@@ -128,6 +130,10 @@ def hyper_parameters(args) -> dict:
     if args.algorithm == "es":
         return {"learning_rate": args.learning_rate, "final_learning_rate": args.final_learning_rate,
                 **{f"es_{k}": v for k, v in es_settings(args).items()}}
+    if args.algorithm == "grpo":
+        return {**{k: getattr(args, k) for k in ("learning_rate", "final_learning_rate", "batch_size", "n_epochs",
+                                                  "clip_range", "log_std_init")},
+                **{f"grpo_{k}": v for k, v in grpo_settings(args).items()}, "exploration": "gSDE, one draw per season"}
     return {**shared, **{k: getattr(args, k) for k in ("n_steps", "n_epochs", "gae_lambda", "clip_range", "ent_coef",
                                                        "log_std_init")},
             "critic_hindsight": bool(args.critic_hindsight), **exploration(args.sde)}
@@ -162,17 +168,17 @@ def check_options(args) -> None:
         ("--critic-hindsight", args.critic_hindsight),
         ("--log-std-final", args.log_std_final is not None), ("--action residual", args.action == "residual"))
         if value]
-    if args.algorithm in ("td3", "es") and ppo_only:
+    if args.algorithm in ("td3", "es", "grpo") and ppo_only:
         raise UsageError(f"{', '.join(ppo_only)}: for PPO only, not --algorithm {args.algorithm}")
     if args.critic_hindsight and args.algorithm != "ppo":
         raise UsageError(f"--critic-hindsight: for PPO only, not --algorithm {args.algorithm}")
     if args.critic_hindsight and args.imitate:
         raise UsageError("--critic-hindsight: for PPO from a fresh network, not with --imitate")
-    if args.algorithm == "td3" and args.imitate:  # (es starts from the cloned network, as PPO does)
-        raise UsageError("--imitate: for PPO and --algorithm es only, not --algorithm td3")
+    if args.algorithm in ("td3", "grpo") and args.imitate:  # (es starts from the cloned network, as PPO does)
+        raise UsageError(f"--imitate: for PPO and --algorithm es only, not --algorithm {args.algorithm}")
     td3_only = [flag for flag, value in (("--action-noise", args.action_noise),
                                          ("--gradient-steps", args.gradient_steps)) if value is not None]
-    for algorithm, flags in (("td3", td3_only), ("es", es_options_given(args))):
+    for algorithm, flags in (("td3", td3_only), ("es", es_options_given(args)), ("grpo", grpo_options_given(args))):
         if args.algorithm != algorithm and flags:
             raise UsageError(f"{', '.join(flags)}: for --algorithm {algorithm} only")
     if args.algorithm == "td3":
@@ -184,6 +190,11 @@ def check_options(args) -> None:
         if not (1 <= es["pairs"] <= 1_000 and 0 < es["noise_std"] <= 10 and 1 <= es["seasons"] <= 1_000):
             raise UsageError(f"--es-pairs {es['pairs']} (1..1,000) / --es-noise-std {es['noise_std']} (0..10] / "
                              f"--es-seasons {es['seasons']} (1..1,000): out of range")
+    if args.algorithm == "grpo":
+        grpo = grpo_settings(args)
+        if not (1 <= grpo["groups"] <= 1_000 and 2 <= grpo["group_size"] <= 1_000):
+            raise UsageError(f"--grpo-groups {grpo['groups']} (1..1,000) / --grpo-group-size {grpo['group_size']} "
+                             "(2..1,000): out of range")
     if not 0 <= args.critic_warmup < args.timesteps:
         raise UsageError(f"--critic-warmup {args.critic_warmup}: steps in 0..--timesteps ({args.timesteps}) - 1")
     exploration(args.sde)  # a negative count is refused
@@ -356,6 +367,9 @@ def train_task(args) -> dict:
     if args.algorithm == "es" and (seasons_each := es_settings(args)["seasons"]) > scenario.n_seasons:
         from crop_sim_ros.usage import UsageError
         raise UsageError(f"--es-seasons {seasons_each}: the training pool has {scenario.n_seasons} seasons")
+    if args.algorithm == "grpo" and (groups := grpo_settings(args)["groups"]) > scenario.n_seasons:
+        from crop_sim_ros.usage import UsageError
+        raise UsageError(f"--grpo-groups {groups}: the training pool has {scenario.n_seasons} seasons")
     out = Path(args.out) if args.out else Path("runs") / f"{args.task}-{args.algorithm}-s{args.seed}"
     out.mkdir(parents=True, exist_ok=True)
     params = core.task_params(scenario)
@@ -393,7 +407,7 @@ def train_task(args) -> dict:
         from .asymmetric import HindsightScaler
         table = scenario_table(scenario)
         hindsight = HindsightScaler(SeasonHindsight(table), table.n_days)
-    if args.algorithm == "es":  # ES runs its own candidates' seasons: the network's spaces are all it needs
+    if args.algorithm in ("es", "grpo"):  # they run their own seasons: the network's spaces are all they need
         from .agent import network_spaces
         venv = network_spaces(interface.input_size)
     else:
@@ -406,7 +420,7 @@ def train_task(args) -> dict:
                   **exploration(args.sde))
     if args.algorithm == "td3":
         model = td3_model(venv, args, net_arch, common["learning_rate"])
-    elif args.algorithm in ("ppo", "es"):  # (es: the PPO policy holds the network; PPO never learns)
+    elif args.algorithm in ("ppo", "es", "grpo"):  # (es, grpo: the PPO policy holds the actor; PPO never learns)
         from stable_baselines3 import PPO
         policy_kwargs = {"net_arch": net_arch, "log_std_init": args.log_std_init}
         if hindsight is None:
@@ -535,16 +549,17 @@ def train_task(args) -> dict:
                 checkpoint(self.model, self.num_timesteps)
             return True
 
-    if args.algorithm == "es":
+    if args.algorithm in ("es", "grpo"):
         from .evolution import evolve
+        from .grpo import grpo
 
-        def es_checkpoint(steps: int, early: bool) -> None:
+        def own_loop_checkpoint(steps: int, early: bool) -> None:
             if early and imitation is None:  # (after cloning, the 1 % policy is the cloning's, saved above)
                 save(model, "early_model", steps)
             checkpoint(model, steps)
 
         training_starts()
-        steps_run = evolve(model, interface, scenario, args, es_checkpoint)
+        steps_run = (evolve if args.algorithm == "es" else grpo)(model, interface, scenario, args, own_loop_checkpoint)
     else:
         callback = Curve()
         if warmup:
