@@ -77,3 +77,10 @@ def test_the_citation_reader_expands_the_notation(tmp_path):
         ("results/a/y[-h8]-sS", "results/a/y-s0"), ("results/a/y[-h8]-sS", "results/a/y-h8-s0"),
         ("results/a/demo-", "results/a/demo-*"), ("results/a/long-", "results/a/long-*"),
         ("results/a/t*.csv", "results/a/t*.csv"), ("results/a/d-[0-9]*.npz", "results/a/d-[0-9]*.npz")]
+
+
+def test_the_contents_list_every_section():
+    prose = re.sub(r"```.*?```", "", README, flags=re.S)
+    sections = [github_anchor(h) for h in re.findall(r"^#{2,3} (.*)$", prose, flags=re.M)]
+    contents = README.split("Contents:", 1)[1].split("\n## ", 1)[0]
+    assert sorted(set(sections) - set(re.findall(r"\]\(#([^)\s]+)\)", contents))) == []
