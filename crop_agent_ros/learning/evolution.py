@@ -163,6 +163,31 @@ class Adam:
         return learning_rate * m_hat / (np.sqrt(v_hat) + self.epsilon)
 
 
+class CheckpointSchedule:
+    """When a learner with its own loop (evolution strategies, :mod:`.grpo`) checkpoints: ``checkpoint(0, early=
+    False)`` at once; then, after each iteration (:meth:`after`), ``publish()`` (the current actor into the policy
+    container) and ``checkpoint(steps, early=True)`` at the first iteration past 1 % of ``args.timesteps``, and
+    ``publish()`` and ``checkpoint(steps, early=False)`` every ``args.eval_freq`` field-days before the end (the
+    caller checkpoints the end)."""
+
+    def __init__(self, args, checkpoint, publish):
+        self.timesteps, self.eval_freq = args.timesteps, args.eval_freq
+        self.early_at = max(1, args.timesteps // 100)
+        self.next_eval, self.early_done = args.eval_freq, False
+        self.checkpoint, self.publish = checkpoint, publish
+        checkpoint(0, early=False)
+
+    def after(self, steps: int) -> None:
+        if not self.early_done and steps >= self.early_at:
+            self.early_done = True
+            self.publish()
+            self.checkpoint(steps, early=True)
+        if steps >= self.next_eval and steps < self.timesteps:
+            self.next_eval += self.eval_freq
+            self.publish()
+            self.checkpoint(steps, early=False)
+
+
 def es_settings(args) -> dict:
     """The run's ES settings: the options given, else ES_DEFAULTS."""
     given = {key: getattr(args, f"es_{key}") for key in ES_OPTIONS}
@@ -187,9 +212,8 @@ def evolve(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
     rng = np.random.default_rng([args.seed, 4_373])
     contexts = season_contexts(scenario) if interface.outlook is not None else None
     lr0, lr1 = args.learning_rate, args.final_learning_rate
-    early_at = max(1, args.timesteps // 100)
-    steps, next_eval, early_done = 0, args.eval_freq, False
-    checkpoint(0, early=False)
+    steps = 0
+    schedule = CheckpointSchedule(args, checkpoint, lambda: actor.set(theta))
     while steps < args.timesteps:
         seasons = rng.choice(n_pool, seasons_each, replace=False)
         terms = draw_terms(scenario, seasons, int(rng.integers(2 ** 31)))
@@ -204,13 +228,6 @@ def evolve(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
         done = min(1.0, steps / args.timesteps)
         theta = theta + adam.step(antithetic_gradient(fitness, noise, noise_std), lr0 + (lr1 - lr0) * done)
         steps += int(episodes.days.sum())
-        if not early_done and steps >= early_at:
-            early_done = True
-            actor.set(theta)
-            checkpoint(steps, early=True)
-        if steps >= next_eval and steps < args.timesteps:
-            next_eval += args.eval_freq
-            actor.set(theta)
-            checkpoint(steps, early=False)
+        schedule.after(steps)
     actor.set(theta)
     return steps

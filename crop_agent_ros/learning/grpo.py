@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from .agent import AgentInterface
-from .evolution import ActorVector
+from .evolution import ActorVector, CheckpointSchedule
 
 GRPO_DEFAULTS = {"groups": 16, "group_size": 8}
 # setting -> (its option of `crop-sim train --task T --algorithm grpo`, metavar, what it is)
@@ -98,12 +98,11 @@ def grpo(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
     optimizer = torch.optim.Adam(actor, lr=args.learning_rate)
     rng = np.random.default_rng([args.seed, 977])
     env = IrrigationVectorEnv(n_fields, scenario, autoreset_mode=AutoresetMode.NEXT_STEP)
-    early_at = max(1, args.timesteps // 100)
-    steps, next_eval, early_done = 0, args.eval_freq, False
-    checkpoint(0, early=False)
-
     def publish() -> None:
         ActorVector(model.policy).set(ActorVector(learner).get())
+
+    steps = 0
+    schedule = CheckpointSchedule(args, checkpoint, publish)
 
     while steps < args.timesteps:
         seasons = group_seasons(rng, scenario.n_seasons, groups, group_size)
@@ -150,13 +149,6 @@ def grpo(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
                 loss.backward()
                 torch.nn.utils.clip_grad_norm_(actor, MAX_GRADIENT_NORM)
                 optimizer.step()
-        if not early_done and steps >= early_at:
-            early_done = True
-            publish()
-            checkpoint(steps, early=True)
-        if steps >= next_eval and steps < args.timesteps:
-            next_eval += args.eval_freq
-            publish()
-            checkpoint(steps, early=False)
+        schedule.after(steps)
     publish()
     return steps

@@ -1,6 +1,6 @@
 """``crop-sim train --task TASK``: train a family agent (PPO, RecurrentPPO, TD3, evolution strategies:
-:mod:`.evolution`, or PPO with group-relative advantages: :mod:`.grpo`) on a family task's training seasons (generated weather only; the held-out real seasons and
-the held-out climate are never seen).
+:mod:`.evolution`, or PPO with group-relative advantages: :mod:`.grpo`) on a family task's training seasons
+(generated weather only; the held-out real seasons and the held-out climate are never seen).
 
 The network's observation and action are those of :mod:`crop_agent_ros.learning.agent` (normalised raw
 observation, action in mm; ``--action residual``: a correction of the task's tuned rule, ``family_<task>.json``,
@@ -165,12 +165,11 @@ def check_options(args) -> None:
     from crop_sim_ros.usage import UsageError
     ppo_only = [flag for flag, value in (
         ("--sde", args.sde is not None), ("--critic-warmup", args.critic_warmup),
-        ("--critic-hindsight", args.critic_hindsight),
         ("--log-std-final", args.log_std_final is not None), ("--action residual", args.action == "residual"))
         if value]
     if args.algorithm in ("td3", "es", "grpo") and ppo_only:
         raise UsageError(f"{', '.join(ppo_only)}: for PPO only, not --algorithm {args.algorithm}")
-    if args.critic_hindsight and args.algorithm != "ppo":
+    if args.critic_hindsight and args.algorithm != "ppo":  # (not recurrent-ppo either: its critic is an LSTM's)
         raise UsageError(f"--critic-hindsight: for PPO only, not --algorithm {args.algorithm}")
     if args.critic_hindsight and args.imitate:
         raise UsageError("--critic-hindsight: for PPO from a fresh network, not with --imitate")
@@ -270,14 +269,14 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
                              action_space=spaces.Box(-1.0, 1.0, (1,), np.float32))
             self.fields = venv.venv
 
-        def _with_hindsight(self, inputs, season, day):
+        def _with_hindsight(self, inputs, season=None, day=None):
+            """``inputs`` with the fields' hindsight values appended (of ``season``, ``day``; default: every
+            field's now); ``inputs`` as they are without a hindsight critic."""
             if hindsight is None:
                 return inputs
+            if season is None:
+                season, day = self.fields.field_seasons, self.fields.field_days
             return np.concatenate([inputs, hindsight(season, day)], axis=-1)
-
-        def _where(self):
-            """(season, day) of every field now."""
-            return self.fields.field_seasons, self.fields.field_days
 
         def _value_per_t(self, raw):
             return raw[:, price] / dry_matter_fraction
@@ -293,10 +292,11 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
             interface.reset()
             self._tell_outlook()
             self.phi = np.zeros(self.num_envs)
-            return self._with_hindsight(interface.observe(raw)[0], *self._where())
+            return self._with_hindsight(interface.observe(raw)[0])
 
         def step_async(self, actions):
-            self.before = self._where()  # (the day a field ends on is the day after)
+            if hindsight is not None:  # (a season ends on the day after the one each field steps from)
+                self.before = self.fields.field_seasons, self.fields.field_days
             self.venv.step_async(interface.to_mm(actions).reshape(-1, 1))
 
         def step_wait(self):
@@ -313,11 +313,12 @@ def training_env(scenario, n_envs: int, seed: int, interface: AgentInterface, ha
                 ended = copy.deepcopy(interface.outlook)  # the ended seasons' climates, for their last inputs
             self._tell_outlook()
             inputs, terminal_inputs = interface.observe(raw, terminal, ended)
-            inputs = self._with_hindsight(inputs, *self._where())
-            season, day = self.before
+            inputs = self._with_hindsight(inputs)
             for i, terminal_input in terminal_inputs.items():
-                infos[i]["terminal_observation"] = self._with_hindsight(terminal_input[None], season[i:i + 1],
-                                                                        day[i:i + 1] + 1)[0]
+                if hindsight is not None:
+                    season, day = self.before
+                    terminal_input = self._with_hindsight(terminal_input[None], season[i:i + 1], day[i:i + 1] + 1)[0]
+                infos[i]["terminal_observation"] = terminal_input
             return inputs, shaped.astype(np.float32), dones, infos
 
     return TaskWrapper()
@@ -364,12 +365,13 @@ def train_task(args) -> dict:
                          "only (real seasons and the held-out climate are for evaluation)")
     check_options(args)
     scenario = training_pool(scenario, args.training_seasons)
-    if args.algorithm == "es" and (seasons_each := es_settings(args)["seasons"]) > scenario.n_seasons:
-        from crop_sim_ros.usage import UsageError
-        raise UsageError(f"--es-seasons {seasons_each}: the training pool has {scenario.n_seasons} seasons")
-    if args.algorithm == "grpo" and (groups := grpo_settings(args)["groups"]) > scenario.n_seasons:
-        from crop_sim_ros.usage import UsageError
-        raise UsageError(f"--grpo-groups {groups}: the training pool has {scenario.n_seasons} seasons")
+    # the distinct training seasons an ES generation / a GRPO iteration draws from the pool
+    drawn = {"es": ("--es-seasons", es_settings, "seasons"), "grpo": ("--grpo-groups", grpo_settings, "groups")}
+    if args.algorithm in drawn:
+        flag, settings, key = drawn[args.algorithm]
+        if (count := settings(args)[key]) > scenario.n_seasons:
+            from crop_sim_ros.usage import UsageError
+            raise UsageError(f"{flag} {count}: the training pool has {scenario.n_seasons} seasons")
     out = Path(args.out) if args.out else Path("runs") / f"{args.task}-{args.algorithm}-s{args.seed}"
     out.mkdir(parents=True, exist_ok=True)
     params = core.task_params(scenario)
