@@ -116,8 +116,10 @@ def grpo(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
         inputs_seen, actions_taken, log_probs, fields = [], [], [], []
         while running.any():
             inputs, _ = interface.observe(obs)
-            with torch.no_grad():
-                actions, _, log_prob = learner(torch.as_tensor(inputs))
+            with torch.no_grad():  # the actor alone (the learner's critic is never used)
+                distribution = learner.get_distribution(torch.as_tensor(inputs))
+                actions = distribution.get_actions()
+                log_prob = distribution.log_prob(actions)
             actions = actions.numpy()
             rows = np.flatnonzero(running)
             inputs_seen.append(inputs[rows])
@@ -141,7 +143,7 @@ def grpo(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
             order = torch.randperm(len(field))
             for start in range(0, len(field), args.batch_size):
                 batch = order[start:start + args.batch_size]
-                _, log_prob, _ = learner.evaluate_actions(inputs_seen[batch], actions_taken[batch])
+                log_prob = learner.get_distribution(inputs_seen[batch]).log_prob(actions_taken[batch])
                 ratio = torch.exp(log_prob - old_log_prob[batch])
                 clipped = torch.clamp(ratio, 1.0 - args.clip_range, 1.0 + args.clip_range)
                 loss = -torch.min(ratio * advantage[batch], clipped * advantage[batch]).mean()
