@@ -21,7 +21,7 @@ Each iteration:
 - PPO's clipped surrogate (clip ``--clip-range``) is minimised over ``--n-epochs`` epochs of minibatches of
   ``--batch-size`` field-days with Adam (step size decaying linearly from ``--learning-rate`` to
   ``--final-learning-rate``), gradient norm clipped at 0.5; only the policy (its network, action layer and
-  exploration scale) learns.
+  exploration scale) learns, and only it is computed (the SB3 policy's value network is never evaluated).
 
 The network, its observation and its action are the headline agent's (:mod:`.agent`: normalised raw
 observation, action in mm, 64 x 64 by default). The run's policy files hold the deterministic actor in the
