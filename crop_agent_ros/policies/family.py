@@ -39,12 +39,12 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from crop_sim_ros.model.simple import WATER_UPTAKE_COEFFICIENT  # ARID's water uptake coefficient, d-1
 from crop_sim_ros.task.layout import EXTENDED
 
 from .base import BasePolicy
 from .outlook import ClimateOutlook, ReadsOutlook
 
-UPTAKE_PER_DAY = 0.096  # ARID's water uptake coefficient, d-1 (crop_sim_ros.model.simple)
 _COL = {name: EXTENDED.index(name) for name in EXTENDED.names}
 
 
@@ -128,7 +128,7 @@ class SoilWaterFilter:
             self._yesterday = np.zeros((len(obs), 2))
         rain, et0 = self._yesterday[:, 0], self._yesterday[:, 1]
         water = self._estimate_mm + rain + obs[:, _COL["irrigation_yesterday_mm"]]
-        water = water - np.minimum(et0, UPTAKE_PER_DAY * water)
+        water = water - np.minimum(et0, WATER_UPTAKE_COEFFICIENT * water)
         carried = np.clip(water, 0.0, self.capacity_mm)
         # The sowing day starts full and known (SIMPLE's initial PAW is the capacity).
         fresh = day < 0.5
@@ -176,7 +176,7 @@ class WaterBudgetRule(ReadsOutlook, BasePolicy):
         p = self.parameters
         paw = self.soil_water.update(obs)
         et0 = obs[:, _COL["et0_mm"]]
-        level = p["level_factor"] * et0 / UPTAKE_PER_DAY + p["margin_mm"]
+        level = p["level_factor"] * et0 / WATER_UPTAKE_COEFFICIENT + p["margin_mm"]
         amount = np.maximum(level - paw - obs[:, _COL["rain_mm"]], 0.0)
         amount = np.where(obs[:, _COL["forecast_rain_mm"]] > p["skip_rain_mm"], 0.0, amount)
         progress = obs[:, _COL["thermal_time_degc_d"]] / self.facts.tsum_degc_d

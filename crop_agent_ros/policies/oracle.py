@@ -44,9 +44,9 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from .base import ACTION_HIGH_MM, DAYS_SINCE_SOWING, BasePolicy, SeasonContext
+from crop_sim_ros.model.simple import WATER_UPTAKE_COEFFICIENT  # ARID's water uptake coefficient, d-1
 
-UPTAKE = 0.096  # ARID's daily water uptake coefficient (crop_sim_ros.model.simple.WATER_UPTAKE_COEFFICIENT)
+from .base import ACTION_HIGH_MM, DAYS_SINCE_SOWING, BasePolicy, SeasonContext
 
 
 def _model():
@@ -122,7 +122,7 @@ def refill_families(contexts: list[SeasonContext], k, floor_mm, stop_day_of) -> 
     for d in range(out.shape[0]):
         day = m.DailyWeather(*weather[d][:, slot])
         rain, et0 = day.rain_mm, day.et0_mm
-        level = np.maximum(k * et0 / UPTAKE, floor_mm)
+        level = np.maximum(k * et0 / WATER_UPTAKE_COEFFICIENT, floor_mm)
         w1_needed = _input_for(level, cap, params.deep_drainage_coefficient, s)
         need = w1_needed - state.plant_available_water_mm  # infiltrated water wanted today
         have = _infiltrated(rain, s)
@@ -491,7 +491,7 @@ def _search(context: SeasonContext, family: np.ndarray, finest_step_mm: float = 
     # unstressed on the maturity day: W2 >= ET0/0.096 there, so W_end = W2 - ET0 >= ET0 (1/0.096 - 1)
     water_floor = max(0.0, float(np.sum(context.et0_mm[:last + 1]) - context.params.initial_paw_mm[0]
                                  - np.sum(context.rain_mm[:last + 1])
-                                 + context.et0_mm[last] * (1.0 / UPTAKE - 1.0)))
+                                 + context.et0_mm[last] * (1.0 / WATER_UPTAKE_COEFFICIENT - 1.0)))
     stress_free_bound = potential + context.water_cost_per_mm * water_floor
     mature, final_maturity_day, biomass = best_final
     harvest_index = float(np.broadcast_to(context.params.harvest_index, (1,))[0])

@@ -43,9 +43,10 @@ from pathlib import Path
 
 import numpy as np
 
+from crop_sim_ros.model.simple import WATER_UPTAKE_COEFFICIENT  # ARID's water uptake coefficient, d-1
+
 from .base import (ACTION_HIGH_MM, DAYS_SINCE_SOWING, FORECAST_RAIN_MM, PAW_MM, TODAY_RAIN_MM, BasePolicy)
 
-UPTAKE = 0.096  # mm d-1 per mm of PAW: ARID's water uptake coefficient (crop_sim_ros.model.simple)
 TARGET_LOW_MM = 20.0
 TARGET_HIGH_MM = 140.0
 # margin mode: m = MARGIN_CENTER_MM + MARGIN_SPAN_MM * a. The centre is the best fixed margin on generated
@@ -88,7 +89,7 @@ def estimated_et0_mm(obs: np.ndarray, tomorrow: bool = False) -> np.ndarray:
 
 def _demand_level_mm(obs: np.ndarray, tomorrow: bool = False) -> np.ndarray:
     """ET0 / 0.096: the PAW (after the day's water) at which transpiration meets the day's demand."""
-    return estimated_et0_mm(obs, tomorrow) / UPTAKE
+    return estimated_et0_mm(obs, tomorrow) / WATER_UPTAKE_COEFFICIENT
 
 
 # the "compact" feature set: biomass, TT, days, today's rain, forecast rain, PAW, and the three derived values
