@@ -172,6 +172,7 @@ def plot_policy(name: str, episodes, context, path: Path) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from crop_sim_ros.model.simple import WATER_UPTAKE_COEFFICIENT
     daily = episodes.daily
     days = int(episodes.days[0])
     t = np.arange(days)
@@ -182,7 +183,7 @@ def plot_policy(name: str, episodes, context, path: Path) -> None:
                       f"{episodes.episode_return[0]:.3f}, yield {episodes.yield_t_ha[0]:.2f} t/ha, "
                       f"irrigation {episodes.water_mm[0]:.0f} mm", fontsize=9)
     axes[1].plot(t, daily["paw_mm"][:days, 0], color="tab:blue", label="PAW (true, start of day)")
-    axes[1].plot(t, np.asarray(context.et0_mm[:days]) / 0.096, color="tab:gray", lw=0.8,
+    axes[1].plot(t, np.asarray(context.et0_mm[:days]) / WATER_UPTAKE_COEFFICIENT, color="tab:gray", lw=0.8,
                  label="ET0 / 0.096 (no-stress level)")
     axes[1].set_ylabel("mm")
     axes[1].legend(fontsize=8)

@@ -98,6 +98,7 @@ def grpo(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
     optimizer = torch.optim.Adam(actor, lr=args.learning_rate)
     rng = np.random.default_rng([args.seed, 977])
     env = IrrigationVectorEnv(n_fields, scenario, autoreset_mode=AutoresetMode.NEXT_STEP)
+
     def publish() -> None:
         ActorVector(model.policy).set(ActorVector(learner).get())
 
