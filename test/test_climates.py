@@ -235,6 +235,8 @@ SCENARIOS = {
     "gainesville-real": (7, "1978-02-01", "2007-02-01"),
     "maricopa-generated": (1000, "2001-01-15", "2001-01-15"),
     "maricopa-real": (3, "2007-01-15", "2009-01-15"),
+    "maricopa-late-generated": (1000, "2001-02-28", "2001-02-28"),
+    "maricopa-late-real": (3, "2007-02-28", "2009-02-28"),
 }
 
 

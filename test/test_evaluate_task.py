@@ -189,6 +189,16 @@ def test_without_the_oracle_every_output_says_gap_not_regret(gap_evaluation):
         assert row["regret_usd_ha"] == pytest.approx((best[None] - returns[row["policy"]]).mean(), rel=1e-12, abs=1e-9)
 
 
+def test_a_set_evaluated_alone_has_the_terms_and_returns_it_has_beside_others(evaluation, gap_evaluation):
+    # far-benton is second in the protocol: alone (--sets far-benton) its terms keep that position's seed
+    beside = next(s for s in evaluation[1]["sets"] if s["name"] == "far-benton")
+    alone = gap_evaluation[1]["sets"][0]
+    assert alone["name"] == "far-benton" and alone["terms_seed"] == beside["terms_seed"] == et.TERMS_SEED + 1
+    assert alone["terms"] == beside["terms"]
+    for policy in ("budget-rule", "ppo", "ppo, 1 % checkpoint"):
+        assert alone["returns_usd_ha"][policy] == beside["returns_usd_ha"][policy], policy
+
+
 def test_learning_curves_read_every_checkpoint_of_the_run(evaluation):
     out, result, run = evaluation
     saved = sorted({json.loads(p.read_text())["timesteps_at_save"] for p in run.glob("*.json")
@@ -307,27 +317,35 @@ def test_evaluation_sets_carry_the_task_terms_to_other_weather():
     from crop_sim_ros.task.scenario import get_scenario
     task = get_scenario(TASK)
     sets = et.evaluation_sets(task, far_seasons=3)
-    assert [s.name for s in sets] == ["heldout-real", "far-benton", "maricopa-generated", "maricopa-real"]
+    late = ["maricopa-late-generated", "maricopa-late-real"]
+    assert [s.name for s in sets] == ["heldout-real", "far-benton", "maricopa-generated", "maricopa-real"] + late
     for s in sets:
         assert s.scenario.economics == task.economics and s.scenario.limits == task.limits
         assert s.scenario.noise == task.noise and len(s.seasons) == s.scenario.n_seasons
     far, maricopa = sets[1].scenario.weather, sets[2].scenario.weather
     assert (far.generator, far.seed, far.n_seasons) == ("benton", 900_001, 3)
     assert (maricopa.generator, maricopa.seed) == ("maricopa", 900_001)
-    assert [len(s.seasons) for s in sets] == [5, 3, 3, 3]
+    assert [len(s.seasons) for s in sets] == [5, 3, 3, 3, 3, 3]
     assert "transfer test: trained on benton weather only" in sets[2].role and "transfer" in sets[3].role
+    # the held-out climate sown late: its own pool's seed + the far seed's offset, so no January draw repeats
+    late_generated, late_real = sets[4].scenario, sets[5].scenario
+    assert (late_generated.weather.generator, late_generated.weather.seed) == ("maricopa", 900_002)
+    assert str(late_generated.sowing_date) == "2001-02-28" and "sown February 28" in sets[4].role
+    assert [str(f.sowing_date) for f in late_real.weather.seasons] == ["2007-02-28", "2008-02-28", "2009-02-28"]
+    assert late_real.economics == task.economics and "transfer" in sets[5].role
     climates = et.evaluation_sets(get_scenario("climates-quota"), far_seasons=2)
     assert [s.name for s in climates] == ["heldout-real", "far-benton", "far-gainesville", "maricopa-generated",
-                                          "maricopa-real"]
+                                          "maricopa-real"] + late
     assert climates[2].scenario.weather.generator == "gainesville" and "held-out climate" in climates[3].role
     assert climates[2].scenario.sowing_date == get_scenario("gainesville-generated").sowing_date
-    # a third part on Benton's generator, sown March 1: its far set comes last, so the others keep climates-quota's
-    # positions (hence their drawn terms) and their weather
+    assert "held-out climate, sown February 28" in climates[5].role
+    # a third part on Benton's generator, sown March 1: its far set comes after the January held-out climate, so
+    # those keep climates-quota's positions (hence their drawn terms) and their weather
     three = et.evaluation_sets(get_scenario("climates3-quota"), far_seasons=2)
-    assert [s.name for s in three] == [s.name for s in climates] + ["far-benton-early"]
-    for a, b in zip(climates, three):
+    assert [s.name for s in three] == [s.name for s in climates[:5]] + ["far-benton-early"] + late
+    for a, b in zip(climates[:5], three):
         assert (a.scenario.weather, a.scenario.sowing_date) == (b.scenario.weather, b.scenario.sowing_date)
-    early = three[-1]
+    early = three[5]
     assert (early.scenario.weather.generator, early.scenario.weather.seed, str(early.scenario.sowing_date)) == \
         ("benton", 900_001, "2000-03-01")
     assert "sown March 1" in early.role and early.scenario.name == "climates3-quota@benton-early-generated-seed900001"

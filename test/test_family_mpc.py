@@ -139,6 +139,9 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
     with pytest.raises(ValueError, match="no weather generator 'atlantis' .* no climate of the task so named "
                                          r"\(benton-early\)"):
         fm.continuation_source(task, "maricopa-generated", "atlantis")
+    # the held-out climate sown late draws its continuations from a pool sown on the same date
+    name, late = fm.continuation_source(task, "maricopa-late-real")
+    assert (name, late.name, str(late.sowing_date)) == ("maricopa", "maricopa-late-generated", "2001-02-28")
     name, early = fm.continuation_source(task, "far-benton-early")
     assert (name, early.name, str(early.sowing_date)) == ("benton-early", "benton-early-generated", "2000-03-01")
     with pytest.raises(ValueError, match="climates3-quota has no climate 'nowhere'"):

@@ -11,8 +11,11 @@ nothing here was seen in training or used to choose anything):
   (900,001; training uses seed 0, validation 10,007 + the training seed), ``--far-seasons`` seasons;
 - ``maricopa-generated`` (re-seeded likewise) and ``maricopa-real`` (2007-2009): the held-out climate. For a
   task trained on one climate (the Benton tasks) these are a transfer test, and the tables say so;
-- ``far-<part>`` (last): a mixture part on a generator another part also uses, i.e. the same site sown on another
-  date (``climates3-quota``'s ``far-benton-early``), named by its scenario (``benton-early-generated``).
+- ``far-<part>``: a mixture part on a generator another part also uses, i.e. the same site sown on another
+  date (``climates3-quota``'s ``far-benton-early``), named by its scenario (``benton-early-generated``);
+- ``maricopa-late-generated`` (weather seed ``--far-seed`` + 1) and ``maricopa-late-real`` (last): the held-out
+  climate sown February 28, where a quota's timing matters more (the rule's headroom is >= 2 % there, under
+  2 % when sown January 15).
 
 Terms: one draw of the task's episode terms (tuber price, water cost, quota) per season and set, from a
 fixed seed (``--terms-seed`` + the set's position), the same for every policy; each policy runs every season
@@ -81,6 +84,7 @@ HEADROOM_PCT = 2.0          # the rule's regret must be at least this share of t
 LEARNING_RATIO = 0.5        # learning is real when final regret <= this x the 1 % checkpoint's
 HELD_OUT_REAL = "heldout-real"
 MARICOPA = ("maricopa-generated", "maricopa-real")
+MARICOPA_LATE = ("maricopa-late-generated", "maricopa-late-real")
 RULE = "budget-rule"
 ORACLE = "oracle"
 KINDS = ("oracle", "rule", "agent", "early")
@@ -116,7 +120,8 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--bootstrap-seed", type=int, default=0)
     parser.add_argument("--sets", default=None,
                         help="comma-separated evaluation sets (default all: heldout-real, far-<generator>..., "
-                             "maricopa-generated, maricopa-real)")
+                             "maricopa-generated, maricopa-real, far-<part>..., maricopa-late-generated, maricopa-late-real); "
+                             "a set's terms are the same as in the whole protocol")
     parser.add_argument("--oracle", action=argparse.BooleanOptionalAction, default=True,
                         help="plan the hindsight oracle per season (regret); --no-oracle: gaps to the best "
                              "evaluated policy instead")
@@ -192,7 +197,20 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
                               with_weather_of(task, real), np.arange(real.n_seasons)))
     # Those come last: each set's terms are drawn with a seed from its position, so climates3-quota's other
     # sets keep climates-quota's positions, seasons and terms (their oracle returns are the same).
-    return sets + other_dates
+    sets += other_dates
+    # The held-out climate sown late (February 28): a quota's timing matters more there than in January, so
+    # these sets leave the rule >= 2 % of the oracle's return where the January ones do not (README). Last, so
+    # that every set above keeps its position; weather seed far_seed + 1, as the late pool's seed is the January
+    # pool's + 1 (the same seed would repeat the January set's random draws six weeks later).
+    late_generated, late_real = (get_scenario(name, task.data_dir) for name in MARICOPA_LATE)
+    late = "sown February 28"
+    sets.append(EvaluationSet("maricopa-late-generated",
+                              f"{held_out_climate}, {late} (Maricopa AZ generator, seed {far_seed + 1})",
+                              with_weather_of(task, reseeded(late_generated, far_seed + 1, far_seasons)),
+                              np.arange(far_seasons)))
+    sets.append(EvaluationSet("maricopa-late-real", f"{held_out_climate}, {late} (Maricopa AZ, real seasons 2007-2009)",
+                              with_weather_of(task, late_real), np.arange(late_real.n_seasons)))
+    return sets
 
 
 def table_set(table: dict, set_name: str) -> tuple[dict, EvaluationSet]:
@@ -676,15 +694,19 @@ def _task(name: str | None):
     return task
 
 
-def _chosen_sets(sets: list[EvaluationSet], text: str | None) -> list[EvaluationSet]:
+def _chosen_sets(sets: list[EvaluationSet], text: str | None) -> tuple[list[EvaluationSet], list[int]]:
+    """The sets ``--sets`` names (all without it) and each one's position in the whole protocol: its terms and
+    bootstrap resamples are seeded by that position, so a set evaluated alone gives the rows it has in the whole
+    evaluation."""
     if text is None:
-        return sets
+        return sets, list(range(len(sets)))
     names = [n.strip() for n in text.split(",") if n.strip()]
     known = [s.name for s in sets]
     unknown = [n for n in names if n not in known]
     if unknown or not names:
         raise UsageError(f"--sets: {', '.join(unknown) or repr(text)} unknown; this task's sets: {', '.join(known)}")
-    return [s for s in sets if s.name in names]
+    positions = [i for i, s in enumerate(sets) if s.name in names]
+    return [sets[i] for i in positions], positions
 
 
 def _versions() -> dict:
@@ -716,7 +738,7 @@ def run_task(args) -> dict:
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out: {out} exists and is not a directory")
     with user_input("--far-seasons", (ValueError,)):
-        sets = _chosen_sets(evaluation_sets(task, args.far_seasons, args.far_seed), args.sets)
+        sets, positions = _chosen_sets(evaluation_sets(task, args.far_seasons, args.far_seed), args.sets)
     groups = agent_runs(args.agents, task.name)
     if args.oracle:
         try:
@@ -735,7 +757,7 @@ def run_task(args) -> dict:
     # every policy is loaded here first: a broken file is the user's, before any unit runs
     agent_names = {**agent_files, **curve_files}
     policies = {RULE: rule, **{key: load_agent(Path(key), name) for key, name in agent_names.items()}}
-    terms = [set_terms(evaluation_set, args.terms_seed + index) for index, evaluation_set in enumerate(sets)]
+    terms = [set_terms(evaluation_set, args.terms_seed + position) for evaluation_set, position in zip(sets, positions)]
     units = plan_units(sets, list(agent_files), list(curve_files), args.noise_seeds, args.oracle)
     wall = {"setup_s": time.perf_counter() - started}
     out.mkdir(parents=True, exist_ok=True)
@@ -793,7 +815,7 @@ def run_task(args) -> dict:
                                            tuple(run.timesteps_of(run.early) for run in runs), seeds))
         reference = (np.broadcast_to(oracle[:, None], (m, k)) if oracle is not None
                      else np.max([e.returns.max(axis=0) for e in evaluated], axis=0))
-        resamples = Resamples.draw(args.bootstrap_seed, index, m, k, {g: len(r) for g, r in groups.items()},
+        resamples = Resamples.draw(args.bootstrap_seed, positions[index], m, k, {g: len(r) for g, r in groups.items()},
                                    args.bootstrap)
         set_rows = [{"set": evaluation_set.name, "role": evaluation_set.role, **row}
                     for row in compare(evaluated, reference, resamples, oracle is not None)]
@@ -806,7 +828,7 @@ def run_task(args) -> dict:
             "name": evaluation_set.name, "role": evaluation_set.role, "scenario": evaluation_set.scenario.name,
             "seasons": evaluation_set.seasons.tolist(),
             "season_sources": [f"{table.sources[s]} sown {table.sowing_dates[s]}" for s in evaluation_set.seasons],
-            "terms_seed": args.terms_seed + index,
+            "terms_seed": args.terms_seed + positions[index],
             "terms": {name: values.tolist() for name, values in terms[index].items()},
             "oracle_returns_usd_ha": None if oracle is None else oracle.tolist(),
             "oracle_plans": plans,
