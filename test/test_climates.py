@@ -237,6 +237,8 @@ SCENARIOS = {
     "maricopa-real": (3, "2007-01-15", "2009-01-15"),
     "maricopa-late-generated": (1000, "2001-02-28", "2001-02-28"),
     "maricopa-late-real": (3, "2007-02-28", "2009-02-28"),
+    "benton-warm-generated": (1000, "2000-04-01", "2000-04-01"),
+    "gainesville-warm-generated": (1000, "2001-02-01", "2001-02-01"),
 }
 
 

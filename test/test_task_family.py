@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from crop_sim_ros.task import IrrigationEnv, IrrigationVectorEnv, core
-from crop_sim_ros.task.layout import EXTENDED, PAPER, layout_of_size
+from crop_sim_ros.task.layout import EXTENDED, PAPER, WEATHER_NAMES, layout_of_size
 from crop_sim_ros.task.scenario import ObservationNoise, get_scenario, load_scenario, scenario_from_dict
 from crop_sim_ros.task.terms import Economics, FarmLimits, Range
 
@@ -239,6 +239,24 @@ def test_climates4_holds_climates3s_seasons_first_and_a_warmed_early_benton_part
                             "weather": {"kind": "generator", "generator": "benton", "warming_degc": 12}})
 
 
+def test_climates6_holds_climates4s_seasons_first_and_two_warmed_parts_that_develop_faster():
+    from crop_sim_ros.task.scenario import climates
+    four, six = get_scenario("climates4-quota"), get_scenario("climates6-quota")
+    assert six.n_seasons == 6000 and six.economics == four.economics and six.limits == four.limits
+    assert list(climates(six)) == ["benton", "gainesville", "benton-early", "benton-early-warm", "benton-warm",
+                                   "gainesville-warm"]
+    table4, table6 = core.scenario_table(four), core.scenario_table(six)
+    for k in (0, 1999, 3000, 3999):
+        np.testing.assert_array_equal(table6.weather[k], table4.weather[k])
+    assert str(table6.sowing_dates[4000]) == "2000-04-01" and table6.sources[4000].startswith("generator(benton+4C")
+    assert str(table6.sowing_dates[5000]) == "2001-02-01" and table6.sources[5000].startswith("generator(gainesville+4C")
+    # the warmed parts are warmer on average than the parts they warm, sown on the same dates (the warming itself
+    # is the generator's, tested in test_climates); the table's weather columns are WEATHER_NAMES, tmax first
+    tmax = WEATHER_NAMES.index("tmax_degc")
+    for warm, cool in ((4000, 0), (5000, 1000)):
+        assert table6.weather[warm:warm + 50, :100, tmax].mean() > table6.weather[cool:cool + 50, :100, tmax].mean() + 2
+
+
 def test_real_seasons_name_their_sites_climate_and_only_they_do():
     assert [get_scenario(n).weather.climate for n in ("heldout", "maricopa-real", "gainesville-real")] == [
         "benton", "maricopa", "gainesville"]
@@ -272,7 +290,7 @@ def test_the_smaller_pivot_task_grows_benton_early_quotas_seasons_within_5_5_mm_
 def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
                  "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot",
-                 "climates4-quota", "benton-early-warm-quota"):
+                 "climates4-quota", "benton-early-warm-quota", "climates6-quota"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))

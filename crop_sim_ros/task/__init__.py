@@ -19,6 +19,7 @@ SimpleIrrigation-Blind-v0               benton-blind          family: quota + no
 SimpleIrrigation-Climates-v0            climates-quota        family: quota, Benton + Gainesville weather
 SimpleIrrigation-Climates3-v0           climates3-quota       family: climates-quota + Benton sown March 1
 SimpleIrrigation-Climates4-v0           climates4-quota       family: climates3-quota + that Benton +4 degC
+SimpleIrrigation-Climates6-v0           climates6-quota       family: + Benton April 1 and Gainesville +4 degC
 ======================================= ===================== ===========================================
 
 The family tasks (money, quota, capacity, sensing, climates) are documented in :mod:`crop_sim_ros.task.layout`
@@ -49,6 +50,7 @@ ENV_IDS = {
     "SimpleIrrigation-Climates-v0": "climates-quota",
     "SimpleIrrigation-Climates3-v0": "climates3-quota",
     "SimpleIrrigation-Climates4-v0": "climates4-quota",
+    "SimpleIrrigation-Climates6-v0": "climates6-quota",
 }
 
 for _env_id, _scenario in ENV_IDS.items():
