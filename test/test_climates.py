@@ -239,6 +239,8 @@ SCENARIOS = {
     "maricopa-late-real": (3, "2007-02-28", "2009-02-28"),
     "benton-warm-generated": (1000, "2000-04-01", "2000-04-01"),
     "gainesville-warm-generated": (1000, "2001-02-01", "2001-02-01"),
+    "benton-late-generated": (1000, "2000-05-01", "2000-05-01"),
+    "benton-late-warm-generated": (1000, "2000-05-01", "2000-05-01"),
 }
 
 

@@ -257,6 +257,18 @@ def test_climates6_holds_climates4s_seasons_first_and_two_warmed_parts_that_deve
         assert table6.weather[warm:warm + 50, :100, tmax].mean() > table6.weather[cool:cool + 50, :100, tmax].mean() + 2
 
 
+def test_climates8_holds_climates6s_seasons_first_and_two_parts_sown_may_1():
+    from crop_sim_ros.task.scenario import climates
+    six, eight = get_scenario("climates6-quota"), get_scenario("climates8-quota")
+    assert eight.n_seasons == 8000 and list(climates(eight))[6:] == ["benton-late", "benton-late-warm"]
+    table6, table8 = core.scenario_table(six), core.scenario_table(eight)
+    for k in (0, 4000, 5999):
+        np.testing.assert_array_equal(table8.weather[k], table6.weather[k])
+    assert [str(table8.sowing_dates[k]) for k in (6000, 7000)] == ["2000-05-01", "2000-05-01"]
+    assert table8.sources[6000].startswith("generator(benton, seed=4")
+    assert table8.sources[7000].startswith("generator(benton+4C, seed=5")
+
+
 def test_real_seasons_name_their_sites_climate_and_only_they_do():
     assert [get_scenario(n).weather.climate for n in ("heldout", "maricopa-real", "gainesville-real")] == [
         "benton", "maricopa", "gainesville"]
@@ -290,7 +302,8 @@ def test_the_smaller_pivot_task_grows_benton_early_quotas_seasons_within_5_5_mm_
 def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
                  "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot",
-                 "climates4-quota", "benton-early-warm-quota", "climates6-quota"):
+                 "climates4-quota", "benton-early-warm-quota", "climates6-quota",
+                 "climates8-quota"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))

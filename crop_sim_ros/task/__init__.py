@@ -20,6 +20,7 @@ SimpleIrrigation-Climates-v0            climates-quota        family: quota, Ben
 SimpleIrrigation-Climates3-v0           climates3-quota       family: climates-quota + Benton sown March 1
 SimpleIrrigation-Climates4-v0           climates4-quota       family: climates3-quota + that Benton +4 degC
 SimpleIrrigation-Climates6-v0           climates6-quota       family: + Benton April 1 and Gainesville +4 degC
+SimpleIrrigation-Climates8-v0           climates8-quota       family: + Benton sown May 1, and +4 degC
 ======================================= ===================== ===========================================
 
 The family tasks (money, quota, capacity, sensing, climates) are documented in :mod:`crop_sim_ros.task.layout`
@@ -51,6 +52,7 @@ ENV_IDS = {
     "SimpleIrrigation-Climates3-v0": "climates3-quota",
     "SimpleIrrigation-Climates4-v0": "climates4-quota",
     "SimpleIrrigation-Climates6-v0": "climates6-quota",
+    "SimpleIrrigation-Climates8-v0": "climates8-quota",
 }
 
 for _env_id, _scenario in ENV_IDS.items():

@@ -23,7 +23,7 @@ Weather sources (``weather.kind``):
 A scenario file may derive from another (``base: NAME``, a built-in name or a YAML path beside it): it takes
 the base's fields and replaces those it names (``noise``, ``economics`` and ``limits`` field by field). The
 task family's scenarios (``benton-money``, ``benton-quota``, ``benton-capacity``, ``benton-sensing``,
-``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``, ``benton-early-quota``,
+``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``, ``climates8-quota``, ``benton-early-quota``,
 ``benton-early-pivot``, ``benton-early-warm-quota``) derive from
 ``benton-generated`` this way; their terms are documented in :mod:`crop_sim_ros.task.terms`.
 
@@ -46,8 +46,8 @@ real seasons of the SIMPLE input set, DSSAT WAPA9201..9501.WTH, sowing dates of 
 planting seasons), ``gainesville-real`` and ``maricopa-real`` (their distinct real years, sown on the same
 dates); ``benton-early-generated`` (Benton County sown March 1, the early end of its planting window);
 ``maricopa-late-generated`` and ``maricopa-late-real`` (Maricopa sown February 28, the late end of its window);
-``benton-early-warm-generated``, ``benton-warm-generated`` and ``gainesville-warm-generated`` (4 degC warmer,
-delta-change). Every
+``benton-late-generated`` (Benton sown May 1); ``benton-early-warm-generated``, ``benton-warm-generated``,
+``benton-late-warm-generated`` and ``gainesville-warm-generated`` (4 degC warmer, delta-change). Every
 built-in scenario grows Russet Burbank potato on the Benton County soil at 369 ppm CO2 (the 2000 global mean;
 the held-out seasons keep it so that only the weather differs from training).
 """
