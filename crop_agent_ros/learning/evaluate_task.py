@@ -79,6 +79,7 @@ import numpy as np
 from crop_sim_ros.usage import UsageError, user_input
 
 FAR_SEED = 900_001
+FAR_SEASONS = 50            # seasons of each far generated set (a pool's first seasons depend on its size)
 TERMS_SEED = 4_049
 HEADROOM_PCT = 2.0          # the rule's regret must be at least this share of the oracle's return
 LEARNING_RATIO = 0.5        # learning is real when final regret <= this x the 1 % checkpoint's
@@ -113,7 +114,7 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--rule-outlook", action="store_true",
                         help="the reference rule also budgets by the climate's normal demand (family_<task>-outlook"
                              ".json, `crop-sim tune-rule --task T --outlook`): the knowledge of an agent's outlook")
-    parser.add_argument("--far-seasons", type=int, default=50, help="seasons of each far generated set")
+    parser.add_argument("--far-seasons", type=int, default=FAR_SEASONS, help="seasons of each far generated set")
     parser.add_argument("--far-seed", type=int, default=FAR_SEED, help="weather seed of the far generated sets")
     parser.add_argument("--terms-seed", type=int, default=TERMS_SEED, help="seed of the drawn terms (set i: + i)")
     parser.add_argument("--bootstrap", type=int, default=2000, help="bootstrap resamples")

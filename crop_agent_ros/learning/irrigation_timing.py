@@ -3,8 +3,9 @@
     python -m crop_agent_ros.learning.irrigation_timing --task benton-quota --set maricopa-late-generated \\
         --agent es=results/family/agents/benton-quota-es-s0 [--agent ...] [--seasons 12] [--period-days 20]
 
-The set's first ``--seasons`` seasons (``crop-sim evaluate``'s sets, with the terms of the set's position in
-the whole protocol, ``--far-seed`` and ``--terms-seed`` as there), noise seed 0; the hindsight oracle, the
+The set's first ``--seasons`` seasons: ``crop-sim evaluate``'s set with its weather and the terms of its position
+in the whole protocol (``--far-seasons``, ``--far-seed`` and ``--terms-seed`` as there: a generated pool's first
+seasons depend on its size), noise seed 0; the hindsight oracle, the
 task's tuned rule and each ``--agent`` (a run directory with ``model.zip``). Prints one row per policy: mean
 return (USD/ha), water (mm), dry yield (t/ha) and days to the season's end, then the mean irrigation (mm) in
 each period of ``--period-days`` days after sowing and the mean true plant-available water (mm) over it. How the
@@ -22,7 +23,7 @@ import numpy as np
 
 from crop_sim_ros.usage import UsageError, user_input
 
-from .evaluate_task import FAR_SEED, TERMS_SEED, evaluation_sets, set_terms
+from .evaluate_task import FAR_SEASONS, FAR_SEED, TERMS_SEED, evaluation_sets, set_terms
 
 
 @dataclass(frozen=True)
@@ -39,16 +40,17 @@ class Timing:
 
 
 def timings(task_name: str, set_name: str, agents: dict[str, Path], seasons: int, period_days: int,
-            far_seed: int = FAR_SEED, terms_seed: int = TERMS_SEED) -> list[Timing]:
+            far_seasons: int = FAR_SEASONS, far_seed: int = FAR_SEED, terms_seed: int = TERMS_SEED) -> list[Timing]:
     """The oracle's, the tuned rule's and each agent's :class:`Timing` on the first ``seasons`` seasons of
-    evaluation set ``set_name`` (ValueError naming the task's sets if it has no such set)."""
+    evaluation set ``set_name`` as ``crop-sim evaluate --far-seasons far_seasons`` builds it (ValueError naming the
+    task's sets if it has no such set)."""
     from crop_sim_ros.task.scenario import get_scenario
     from ..policies import family_tuning
     from ..policies.family_oracle import FamilyOraclePolicy
     from ..policies.rollout import run_episodes
     from .agent import LearnedPolicy
     task = get_scenario(task_name)
-    sets = evaluation_sets(task, seasons, far_seed)
+    sets = evaluation_sets(task, far_seasons, far_seed)
     position = next((i for i, s in enumerate(sets) if s.name == set_name), None)
     if position is None:
         raise ValueError(f"no set {set_name!r} in {task_name}'s protocol (sets: {', '.join(s.name for s in sets)})")
@@ -98,17 +100,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--agent", action="append", default=[], metavar="NAME=RUN_DIRECTORY")
     parser.add_argument("--seasons", type=int, default=12, help="the set's first N seasons")
     parser.add_argument("--period-days", type=int, default=20)
+    parser.add_argument("--far-seasons", type=int, default=FAR_SEASONS,
+                        help="seasons of each far generated set, as crop-sim evaluate's (default: its default)")
     parser.add_argument("--far-seed", type=int, default=FAR_SEED)
     parser.add_argument("--terms-seed", type=int, default=TERMS_SEED)
     args = parser.parse_args(argv)
     try:
-        for name, value, high in (("--seasons", args.seasons, 1000), ("--period-days", args.period_days, 200)):
+        for name, value, high in (("--seasons", args.seasons, 1000), ("--period-days", args.period_days, 200),
+                                  ("--far-seasons", args.far_seasons, 10_000)):
             if not 1 <= value <= high:
                 raise UsageError(f"{name}: {value} is not in 1..{high}")
         agents = _agents(args.agent)
         with user_input(None, (ValueError, KeyError)):
-            rows = timings(args.task, args.set, agents, args.seasons, args.period_days, args.far_seed,
-                           args.terms_seed)
+            rows = timings(args.task, args.set, agents, args.seasons, args.period_days, args.far_seasons,
+                           args.far_seed, args.terms_seed)
     except UsageError as error:
         print(f"irrigation_timing: {error}", file=sys.stderr)
         return 2
