@@ -204,7 +204,7 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
     # that every set above keeps its position; weather seed far_seed + 1, as the late pool's seed is the January
     # pool's + 1 (the same seed would repeat the January set's random draws six weeks later).
     late_generated, late_real = (get_scenario(name, task.data_dir) for name in MARICOPA_LATE)
-    late = "sown February 28"
+    late = f"sown {late_generated.sowing_date:%B} {late_generated.sowing_date.day}"
     sets.append(EvaluationSet("maricopa-late-generated",
                               f"{held_out_climate}, {late} (Maricopa AZ generator, seed {far_seed + 1})",
                               with_weather_of(task, reseeded(late_generated, far_seed + 1, far_seasons)),
