@@ -287,3 +287,45 @@ def test_the_rule_with_a_soil_water_filter_is_measured_on_a_committed_table(caps
     out = capsys.readouterr().out
     assert "heldout-real: rule regret 437.6 USD/ha; with a filter at 10 mm" in out
     assert filtered_rule.main([str(table.parent / "missing.json")]) == 2
+
+
+def test_hidden_columns_scale_to_zero_and_round_trip_through_the_record():
+    rng = np.random.default_rng(1)
+    obs = rng.normal(5.0, 2.0, (200, EXTENDED.size))
+    fitted = ObservationScaler.fit(obs)
+    assert "hidden" not in fitted.record()  # a policy file of a network that sees everything is as before
+    scaler = replace(fitted, hidden=("days_since_sowing", "season_days_left"))
+    day, left = EXTENDED.index("days_since_sowing"), EXTENDED.index("season_days_left")
+    scaled, plain = scaler(obs), fitted(obs)
+    assert np.all(scaled[:, [day, left]] == 0.0) and np.any(plain[:, [day, left]] != 0.0)
+    others = [i for i in range(EXTENDED.size) if i not in (day, left)]
+    np.testing.assert_array_equal(scaled[:, others], plain[:, others])
+    assert ObservationScaler.from_record(json.loads(json.dumps(scaler.record()))) == scaler
+    with pytest.raises(KeyError, match="no observation column 'days'"):
+        ObservationScaler(fitted.mean, fitted.std, ("days",))
+
+
+def test_an_agent_trained_with_hidden_columns_records_them_and_does_not_read_them(tmp_path):
+    from crop_sim_ros.usage import UsageError
+    with pytest.raises(UsageError, match="--hide days, sowing: no such observation column; columns: biomass_t_ha"):
+        _train(tmp_path / "bad", "--hide", "sowing,days_since_sowing,days")
+    assert not (tmp_path / "bad").exists()  # refused before any work
+    _, out = _train(tmp_path, "--hide", "season_days_left, days_since_sowing")
+    config = json.loads((out / "model.json").read_text())
+    assert config["scaler"]["hidden"] == ["days_since_sowing", "season_days_left"]  # layout order
+    policy = LearnedPolicy(out / "model.zip")
+    obs, _ = _sensing_season(fields=3, days=2)
+    moved = obs[1].copy()
+    moved[:, EXTENDED.index("days_since_sowing")] += 40.0
+    moved[:, EXTENDED.index("season_days_left")] -= 40.0
+    policy.reset()
+    policy.act(obs[0])
+    first = policy.act(obs[1])
+    policy.reset()
+    policy.act(obs[0])
+    np.testing.assert_array_equal(policy.act(moved), first)
+    changed = obs[1].copy()
+    changed[:, EXTENDED.index("thermal_time_degc_d")] += 400.0
+    policy.reset()
+    policy.act(obs[0])
+    assert not np.array_equal(policy.act(changed), first)  # a column it reads still moves its action

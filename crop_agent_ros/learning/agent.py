@@ -35,6 +35,7 @@ the memory (and the rule's checkbook), ``act`` takes (N, 29) observations.
 from __future__ import annotations
 
 import copy
+import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -102,10 +103,30 @@ FLOOR_STD = 1e-3
 @dataclass(frozen=True)
 class ObservationScaler:
     """Fixed affine scaling of the observation: (obs - mean) / std, clipped to [-10, 10] (std floored at
-    1e-3 of the column's unit, so a constant column scales to 0)."""
+    1e-3 of the column's unit, so a constant column scales to 0). The ``hidden`` columns (names of
+    :data:`~crop_sim_ros.task.layout.EXTENDED`) always scale to 0: the network cannot read them (``crop-sim
+    train --hide``, e.g. the day count, so that the network must time its water by the crop's thermal time,
+    which is what carries over to a climate where the crop develops faster)."""
 
     mean: tuple[float, ...]
     std: tuple[float, ...]
+    hidden: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        for name in self.hidden:
+            EXTENDED.index(name)  # KeyError naming the columns that exist
+
+    @functools.cached_property
+    def _hidden_columns(self) -> list[int]:
+        return [EXTENDED.index(name) for name in self.hidden]
+
+    def record(self) -> dict:
+        """The scaler as a policy file holds it (``hidden`` only when some column is hidden)."""
+        return {"mean": list(self.mean), "std": list(self.std), **({"hidden": list(self.hidden)} if self.hidden else {})}
+
+    @classmethod
+    def from_record(cls, record: dict) -> "ObservationScaler":
+        return cls(tuple(record["mean"]), tuple(record["std"]), tuple(record.get("hidden", ())))
 
     @classmethod
     def fit(cls, observations: np.ndarray, demonstrations: np.ndarray | None = None) -> "ObservationScaler":
@@ -125,6 +146,7 @@ class ObservationScaler:
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         scaled = (np.atleast_2d(np.asarray(obs, dtype=float)) - np.asarray(self.mean)) / np.asarray(self.std)
+        scaled[:, self._hidden_columns] = 0.0
         return np.clip(scaled, -10.0, 10.0).astype(np.float32)
 
 
@@ -288,7 +310,10 @@ class LearnedPolicy(ReadsOutlook, BasePolicy):
             if self.config["outlook"] != outlook.record():
                 raise ValueError(f"{config_file}: outlook {self.config['outlook']!r} is not this version's "
                                  f"{outlook.record()!r}")
-        scaler = ObservationScaler(tuple(self.config["scaler"]["mean"]), tuple(self.config["scaler"]["std"]))
+        try:
+            scaler = ObservationScaler.from_record(self.config["scaler"])
+        except KeyError as error:
+            raise ValueError(f"{config_file}: scaler: {error}") from None
         self.interface = AgentInterface(scaler, self.config.get("history", 1), action_kind, rule, paw_filter,
                                         outlook)
         self.model = algorithm_class(self.algorithm).load(str(self.path), device="cpu")

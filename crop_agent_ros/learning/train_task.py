@@ -39,6 +39,9 @@ from .grpo import add_grpo_arguments, grpo_options_given, grpo_settings
 
 REWARD_SCALE_USD = 1000.0
 TRAINING_KINDS = ("generator", "mixture")
+# The columns that count days: their meaning for the crop differs between climates (a potato crop matures in
+# ~107 days in Maricopa sown February 28, 137-173 days in the training climates), where thermal time's does not.
+CLIMATE_BOUND_DAY_COLUMNS = ("days_since_sowing", "season_days_left")
 TD3_BUFFER_FIELD_DAYS = 1_000_000  # about 6,700 seasons: every transition of the first sixth of a 6 M-step run
 TD3_DEFAULTS = {"action_noise": 0.2, "gradient_steps": 16}
 
@@ -57,6 +60,12 @@ def add_task_arguments(parser) -> None:
                         help="with --task: the network also sees a climate outlook, the quota left against the "
                              "demand the field's climate normally brings in the next 60 days and that demand's "
                              "trend (crop_agent_ros.policies.outlook; a labelled feature)")
+    parser.add_argument("--hide", default=None, metavar="COLUMNS",
+                        help="with --task: observation columns the network cannot read (comma-separated names of "
+                             "crop_sim_ros.task.layout.EXTENDED; each scales to 0), e.g. "
+                             f"{','.join(CLIMATE_BOUND_DAY_COLUMNS)}: the network then times its water by thermal "
+                             "time, which carries over to a climate where the crop develops faster (a labelled "
+                             "feature)")
     parser.add_argument("--sde", type=int, default=None, metavar="DAYS",
                         help="with --task: generalized state-dependent exploration (gSDE, Raffin et al. 2021) "
                              "instead of independent daily noise: the exploration is a function of the observation "
@@ -197,6 +206,20 @@ def check_options(args) -> None:
     if not 0 <= args.critic_warmup < args.timesteps:
         raise UsageError(f"--critic-warmup {args.critic_warmup}: steps in 0..--timesteps ({args.timesteps}) - 1")
     exploration(args.sde)  # a negative count is refused
+    hidden_columns(getattr(args, "hide", None))  # an unknown column is refused
+
+
+def hidden_columns(text: str | None) -> tuple[str, ...]:
+    """``--hide``'s column names, in layout order (UsageError naming the columns that exist for an unknown one)."""
+    if not text:
+        return ()
+    from crop_sim_ros.task.layout import EXTENDED
+    from crop_sim_ros.usage import UsageError
+    names = {name.strip() for name in text.split(",") if name.strip()}
+    unknown = sorted(names - set(EXTENDED.names))
+    if unknown:
+        raise UsageError(f"--hide {', '.join(unknown)}: no such observation column; columns: {', '.join(EXTENDED.names)}")
+    return tuple(name for name in EXTENDED.names if name in names)
 
 
 def exploration(sde_days: int | None) -> dict:
@@ -382,8 +405,9 @@ def train_task(args) -> dict:
             from crop_sim_ros.usage import UsageError
             raise UsageError(f"--imitation-epochs {args.imitation_epochs}: must be in 1..100,000")
         demonstrations = load_demonstrations(args.imitate, scenario.name)
-    scaler = fit_scaler(scenario, args.seed,
-                        demonstrations=None if demonstrations is None else demonstrations["observations"])
+    scaler = replace(fit_scaler(scenario, args.seed,
+                                demonstrations=None if demonstrations is None else demonstrations["observations"]),
+                     hidden=hidden_columns(getattr(args, "hide", None)))
     net_arch = [int(x) for x in str(args.net_arch).split(",") if x.strip()]
     action_kind = getattr(args, "action", "mm")
     rule = None
@@ -483,7 +507,7 @@ def train_task(args) -> dict:
               **({} if hindsight is None else {"critic_hindsight": {
                   **hindsight.record(), "use": "the value network's extra inputs in training; the policy files "
                                                "hold the policy alone (a fresh, untrained value network)"}}),
-              "scaler": {"mean": list(scaler.mean), "std": list(scaler.std)},
+              "scaler": scaler.record(),
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",
               "hyper_parameters": hyper_parameters(args)}
 
