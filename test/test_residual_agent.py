@@ -201,3 +201,26 @@ def test_training_a_residual_without_the_tasks_tuned_rule_is_refused(tmp_path, m
                                          r"\.json is missing: run `crop-sim tune-rule --task benton-sensing`"):
         _train(tmp_path / "run")
     assert not (tmp_path / "run" / "model.zip").exists()
+
+
+def test_evolution_strategies_correct_the_rule_from_the_rule_and_grpo_td3_refuse_it(tmp_path):
+    """ES's candidates act through the residual interface: its checkpoint before the first generation is the tuned
+    rule, its trained policy corrects it (a labelled variant, as PPO's residual)."""
+    from crop_sim_ros.task.scenario import get_scenario
+    from crop_sim_ros.usage import UsageError
+    out = tmp_path / "es"
+    _train(out, "--algorithm", "es", "--es-pairs", "3", "--es-seasons", "3", "--es-noise-std", "0.3",
+           "--timesteps", "60000", "--eval-freq", "30000")
+    config = json.loads((out / "model.json").read_text())
+    assert config["algorithm"] == "es" and config["action_kind"] == "residual" and config["rule"]["parameters"]
+    seasons = np.arange(3)
+    terms = draw_terms(get_scenario(TASK), seasons, 11)
+    rule = run_episodes(tuned_rule(TASK), TASK, seasons, seed=2, terms=terms)
+    start = run_episodes(LearnedPolicy(_first_checkpoint(out)), TASK, seasons, seed=2, terms=terms)
+    np.testing.assert_array_equal(start.episode_return, rule.episode_return)
+    trained = run_episodes(LearnedPolicy(out / "model.zip"), TASK, seasons, seed=2, terms=terms)
+    assert not np.array_equal(trained.episode_return, rule.episode_return)  # ES moved the correction off zero
+    for algorithm in ("grpo", "td3"):
+        with pytest.raises(UsageError, match=f"--action residual: for PPO and --algorithm es only, not --algorithm "
+                                             f"{algorithm}"):
+            _train(tmp_path / algorithm, "--algorithm", algorithm)

@@ -174,10 +174,12 @@ def check_options(args) -> None:
     from crop_sim_ros.usage import UsageError
     ppo_only = [flag for flag, value in (
         ("--sde", args.sde is not None), ("--critic-warmup", args.critic_warmup),
-        ("--log-std-final", args.log_std_final is not None), ("--action residual", args.action == "residual"))
-        if value]
+        ("--log-std-final", args.log_std_final is not None)) if value]
     if args.algorithm in ("td3", "es", "grpo") and ppo_only:
         raise UsageError(f"{', '.join(ppo_only)}: for PPO only, not --algorithm {args.algorithm}")
+    # (evolution strategies' candidates act through the same interface, so they correct the rule as PPO does)
+    if args.algorithm in ("td3", "grpo") and args.action == "residual":
+        raise UsageError(f"--action residual: for PPO and --algorithm es only, not --algorithm {args.algorithm}")
     if args.critic_hindsight and args.algorithm != "ppo":  # (not recurrent-ppo either: its critic is an LSTM's)
         raise UsageError(f"--critic-hindsight: for PPO only, not --algorithm {args.algorithm}")
     if args.critic_hindsight and args.imitate:
