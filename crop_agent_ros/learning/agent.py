@@ -105,8 +105,8 @@ class ObservationScaler:
     """Fixed affine scaling of the observation: (obs - mean) / std, clipped to [-10, 10] (std floored at
     1e-3 of the column's unit, so a constant column scales to 0). The ``hidden`` columns (names of
     :data:`~crop_sim_ros.task.layout.EXTENDED`) always scale to 0: the network cannot read them (``crop-sim
-    train --hide``, e.g. the day count, so that the network must time its water by the crop's thermal time,
-    which is what carries over to a climate where the crop develops faster)."""
+    train --hide``, a labelled feature: e.g. the day count, whose meaning for the crop differs between climates;
+    measured on ``climates6-quota``, hiding it made the transfer to the late-sown held-out climate worse, README)."""
 
     mean: tuple[float, ...]
     std: tuple[float, ...]

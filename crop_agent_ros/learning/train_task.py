@@ -40,7 +40,8 @@ from .grpo import add_grpo_arguments, grpo_options_given, grpo_settings
 REWARD_SCALE_USD = 1000.0
 TRAINING_KINDS = ("generator", "mixture")
 # The columns that count days: their meaning for the crop differs between climates (a potato crop matures in
-# ~107 days in Maricopa sown February 28, 137-173 days in the training climates), where thermal time's does not.
+# ~107 days in Maricopa sown February 28, 137-173 days in climates4-quota's parts), where thermal time's does not.
+# (Hiding them from ES on climates6-quota made its transfer to that climate worse: README, "sown late".)
 CLIMATE_BOUND_DAY_COLUMNS = ("days_since_sowing", "season_days_left")
 TD3_BUFFER_FIELD_DAYS = 1_000_000  # about 6,700 seasons: every transition of the first sixth of a 6 M-step run
 TD3_DEFAULTS = {"action_noise": 0.2, "gradient_steps": 16}
@@ -63,9 +64,8 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--hide", default=None, metavar="COLUMNS",
                         help="with --task: observation columns the network cannot read (comma-separated names of "
                              "crop_sim_ros.task.layout.EXTENDED; each scales to 0), e.g. "
-                             f"{','.join(CLIMATE_BOUND_DAY_COLUMNS)}: the network then times its water by thermal "
-                             "time, which carries over to a climate where the crop develops faster (a labelled "
-                             "feature)")
+                             f"{','.join(CLIMATE_BOUND_DAY_COLUMNS)} (the network must then time its water by "
+                             "thermal time; a labelled feature)")
     parser.add_argument("--sde", type=int, default=None, metavar="DAYS",
                         help="with --task: generalized state-dependent exploration (gSDE, Raffin et al. 2021) "
                              "instead of independent daily noise: the exploration is a function of the observation "
