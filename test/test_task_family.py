@@ -302,7 +302,7 @@ def test_the_smaller_pivot_task_grows_benton_early_quotas_seasons_within_5_5_mm_
 def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
                  "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot",
-                 "climates4-quota", "benton-early-warm-quota", "climates6-quota",
+                 "climates4-quota", "benton-early-warm-quota", "climates6-quota", "maricopa-late-quota",
                  "climates8-quota"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)

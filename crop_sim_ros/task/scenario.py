@@ -24,7 +24,7 @@ A scenario file may derive from another (``base: NAME``, a built-in name or a YA
 the base's fields and replaces those it names (``noise``, ``economics`` and ``limits`` field by field). The
 task family's scenarios (``benton-money``, ``benton-quota``, ``benton-capacity``, ``benton-sensing``,
 ``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``, ``climates8-quota``, ``benton-early-quota``,
-``benton-early-pivot``, ``benton-early-warm-quota``) derive from
+``benton-early-pivot``, ``benton-early-warm-quota``, ``maricopa-late-quota``) derive from
 ``benton-generated`` this way; their terms are documented in :mod:`crop_sim_ros.task.terms`.
 
 File formats: ``agweathernet`` (AgWeatherNet daily CSV), ``dssat`` (DSSAT .WTH), ``csv`` (the plain daily CSV of
