@@ -232,7 +232,7 @@ def test_climates4_holds_climates3s_seasons_first_and_a_warmed_early_benton_part
     values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
               "weather": {"kind": "seasons", "warming_degc": 1.0,
                           "seasons": [{"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}}
-    with pytest.raises(ValueError, match="weather.warming_degc: only a 'generator' source can be warmed"):
+    with pytest.raises(ValueError, match="weather.warming_degc, drying_degc: only a 'generator' source can be warmed"):
         scenario_from_dict(values)
     with pytest.raises(ValueError, match="weather.warming_degc"):
         scenario_from_dict({**values, "sowing_date": "2000-04-01",
@@ -269,6 +269,34 @@ def test_climates8_holds_climates6s_seasons_first_and_two_parts_sown_may_1():
     assert table8.sources[7000].startswith("generator(benton+4C, seed=5")
 
 
+def test_climates10_holds_climates8s_seasons_first_and_two_hotter_drier_parts():
+    from crop_agent_ros.policies.outlook import scenario_climate
+    from crop_sim_ros.task.scenario import climates
+    eight, ten = get_scenario("climates8-quota"), get_scenario("climates10-quota")
+    assert ten.n_seasons == 10_000 and ten.economics == eight.economics and ten.limits == eight.limits
+    assert list(climates(ten))[8:] == ["benton-hot-dry", "benton-march15-hot-dry"]
+    table8, table10 = core.scenario_table(eight), core.scenario_table(ten)
+    for k in (0, 5000, 7999):
+        np.testing.assert_array_equal(table10.weather[k], table8.weather[k])
+    assert [str(table10.sowing_dates[k]) for k in (8000, 9000)] == ["2000-04-01", "2000-03-15"]
+    assert table10.sources[8000].startswith("generator(benton+6C+8DPD, seed=6")
+    assert table10.sources[9000].startswith("generator(benton+6C+8DPD, seed=7")
+    assert scenario_climate(get_scenario("benton-hot-dry-generated")) == "benton+6C+8DPD"
+    # drier air than the part warmed as much without drying would have: vapour pressure is WEATHER_NAMES' vap_hpa
+    vap = WEATHER_NAMES.index("vap_hpa")
+    assert table10.weather[8000:8050, :100, vap].mean() < 0.8 * table10.weather[4000:4050, :100, vap].mean()
+    # drying is a generator's option, for a generator fitted with humidity data, within +-10 degC
+    values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
+              "sowing_date": "2000-04-01"}
+    with pytest.raises(ValueError, match="only a 'generator' source can be warmed or dried"):
+        scenario_from_dict({**values, "weather": {"kind": "seasons", "drying_degc": 1.0, "seasons": [
+            {"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}})
+    with pytest.raises(ValueError, match="weather.drying_degc"):
+        scenario_from_dict({**values, "weather": {"kind": "generator", "generator": "benton", "drying_degc": -11}})
+    with pytest.raises(ValueError, match="gainesville was fitted without humidity data"):
+        scenario_from_dict({**values, "weather": {"kind": "generator", "generator": "gainesville", "drying_degc": 2}})
+
+
 def test_real_seasons_name_their_sites_climate_and_only_they_do():
     assert [get_scenario(n).weather.climate for n in ("heldout", "maricopa-real", "gainesville-real")] == [
         "benton", "maricopa", "gainesville"]
@@ -303,7 +331,7 @@ def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
                  "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot",
                  "climates4-quota", "benton-early-warm-quota", "climates6-quota", "maricopa-late-quota",
-                 "climates8-quota"):
+                 "climates8-quota", "climates10-quota"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))

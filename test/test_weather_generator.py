@@ -15,7 +15,7 @@ import pytest
 from crop_sim_ros.weather.fit import add_arguments, fit_parameters, load_observed, monthly_statistics, run
 from crop_sim_ros.weather.generator import (BENTON_PARAMETERS_FILE, GeneratorParameters, benton_parameters,
                                             clear_sky_radiation_mj_m2, conditional_field_names, generate_season,
-                                            generate_seasons, smooth_daily)
+                                            generate_seasons, generator_parameters, smooth_daily)
 from crop_sim_ros.weather.series import VARIABLES, WeatherError
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -308,6 +308,42 @@ def test_a_warmed_generator_raises_the_temperatures_and_nothing_else_it_draws():
     for bad in (10.5, float("nan"), "warm"):
         with pytest.raises((WeatherError, ValueError), match="warming_degc"):
             warmed(params, bad)
+
+
+def test_a_dried_generator_lowers_the_vapour_pressure_and_nothing_else_it_draws():
+    from crop_sim_ros.weather.generator import dried, warmed
+    params = warmed(benton_parameters(), 6.0)
+    assert dried(params, 0.0) is params
+    dry = dried(params, 8.0)
+    assert dry.name == "benton+6C+8DPD" and dried(benton_parameters(), -2).name == "benton-2DPD"
+    np.testing.assert_allclose(dry.dew_point_depression_mean_degc, np.array(params.dew_point_depression_mean_degc) + 8)
+    assert dry.dew_point_depression_sd_degc == params.dew_point_depression_sd_degc
+    base, arid = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, dry))
+    for b, a in zip(base, arid):
+        for name in ("tmax_degc", "tmin_degc", "rain_mm", "srad_mj_m2", "wind_m_s"):  # the same draws
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        assert np.all(a.vap_hpa <= b.vap_hpa) and a.vap_hpa.mean() < 0.8 * b.vap_hpa.mean()
+        # drier air: a larger vapour-pressure deficit (though more net long-wave loss, so not every day)
+        assert a.et0_mm("penman_monteith").mean() > b.et0_mm("penman_monteith").mean()
+        assert a.source.startswith("generator(benton+6C+8DPD, seed=3")
+    with pytest.raises(WeatherError, match="drying_degc: gainesville was fitted without humidity data"):
+        dried(generator_parameters("gainesville"), 2.0)
+    for bad in (-10.5, float("inf"), None):
+        with pytest.raises(WeatherError, match="drying_degc"):
+            dried(params, bad)
+
+
+def test_a_climate_name_gives_its_parameters_and_a_malformed_one_is_refused_by_name():
+    from crop_sim_ros.weather.generator import climate_name, climate_parameters, dried, warmed
+    for generator, warming, drying, name in (("benton", 0, 0, "benton"), ("benton", 4, 0, "benton+4C"),
+                                             ("maricopa", -1.5, 0, "maricopa-1.5C"),
+                                             ("benton", 6, 8, "benton+6C+8DPD"), ("benton", 0, 3, "benton+3DPD")):
+        assert climate_name(generator, warming, drying) == name
+        assert climate_parameters(name) == dried(warmed(generator_parameters(generator), warming), drying)
+        assert climate_parameters(name).name == name
+    for bad in ("mars", "benton+4", "benton+4.0C", "benton+xC", "benton+8DPD+4C", "benton+11C", "gainesville+1DPD"):
+        with pytest.raises(WeatherError, match=r"climate|drying|warming"):
+            climate_parameters(bad)
 
 
 def test_weather_layer_imports_no_ros_gym_or_torch():

@@ -17,9 +17,9 @@ demand_trend          1      2 ln(E60 / (60 x the mean normal ET0 of days s+t-14
 
 Normals: each climate's mean daily ET0 (FAO-56 Penman-Monteith, mm) by day of the year over
 :data:`NORMAL_YEARS` years drawn by its weather generator with seed :data:`NORMALS_SEED` (no training,
-validation, evaluation or continuation pool uses it). A climate is a fitted generator, warmed or not
-(``benton``, ``benton+4C``: the name its seasons' source carries). A generated season's climate is read from
-its source; a real season's (held-out Benton, Maricopa) is its site's generator, as its scenario names it
+validation, evaluation or continuation pool uses it). A climate is a fitted generator, warmed or dried or not
+(``benton``, ``benton+4C``, ``benton+4C+8DPD``: the name its seasons' source carries). A generated season's
+climate is read from its source; a real season's (held-out Benton, Maricopa) is its site's generator, as its scenario names it
 (``weather.climate``; for Maricopa's three real seasons, a generator whose fit includes those years: that
 set's outlook is not independent of it; the 50 generated Maricopa seasons are). The water-budget rule's ``outlook_pace``
 (:mod:`crop_agent_ros.policies.family`) reads the same normals (:func:`normal_share_today`).
@@ -46,18 +46,13 @@ _DAYS_LEFT = EXTENDED.index("season_days_left")
 
 @functools.lru_cache(maxsize=None)
 def normal_et0_mm(climate: str) -> np.ndarray:
-    """(365,) mean daily ET0 (mm) by day of the year (0 = January 1) of ``climate`` (``<generator>`` or
-    ``<generator><+warming>C``); ValueError naming the fitted generators for an unknown one."""
-    from crop_sim_ros.weather.generator import GENERATOR_NAMES, generate_seasons, generator_parameters, warmed
-    name, sign, warming = climate.partition("+") if "+" in climate else climate.partition("-")
+    """(365,) mean daily ET0 (mm) by day of the year (0 = January 1) of ``climate`` (``<generator>``, warmed and
+    dried as in ``benton+4C+8DPD``); ValueError naming the fitted generators for an unknown one."""
+    from crop_sim_ros.weather.generator import WeatherError, climate_parameters, generate_seasons
     try:
-        degc = float(sign + warming.removesuffix("C")) if sign and warming.endswith("C") else None
-    except ValueError:
-        degc = None
-    if name not in GENERATOR_NAMES or (sign and degc is None):
-        raise ValueError(f"climate outlook: no climate {climate!r} (fitted generators: {', '.join(GENERATOR_NAMES)},"
-                         " warmed as in benton+4C)")
-    params = warmed(generator_parameters(name), degc or 0.0)
+        params = climate_parameters(climate)
+    except WeatherError as error:
+        raise ValueError(f"climate outlook: {error}") from None
     years = generate_seasons(params, datetime.date(2001, 1, 1), 730, NORMAL_YEARS, NORMALS_SEED)
     et0 = np.stack([series.et0_mm("penman_monteith") for series in years])
     normals = et0.reshape(NORMAL_YEARS, 2, 365).mean(axis=(0, 1))
@@ -82,9 +77,8 @@ def season_climate(source: str, fallback: str | None, season: str) -> str:
 
 
 def scenario_climate(scenario) -> str:
-    """The climate of a generated-weather scenario (its generator, warmed as it says)."""
-    warming = float(scenario.weather.warming_degc)
-    return scenario.weather.generator + (f"{warming:+g}C" if warming else "")
+    """The climate of a generated-weather scenario (its generator, warmed and dried as it says)."""
+    return scenario.weather.generated_climate
 
 
 def pool_climates(task) -> list[tuple[str, int]]:

@@ -33,6 +33,7 @@ rclpy, gymnasium nor torch.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import asdict, dataclass, field, fields, replace
 from datetime import date
 from pathlib import Path
@@ -230,8 +231,21 @@ def generator_parameters(name: str) -> GeneratorParameters:
     return params
 
 
-# Largest warming (degC, either sign) a scenario may add to a generator's temperatures.
-MAX_WARMING_DEGC = 10.0
+# Largest warming or drying (degC, either sign) a scenario may add to a generator's temperatures or dew-point
+# depressions.
+MAX_DELTA_DEGC = 10.0
+
+
+def _delta_degc(name: str, value) -> float:
+    """``value`` as a float, or WeatherError naming ``name`` unless it is finite and within
+    +-:data:`MAX_DELTA_DEGC`."""
+    try:
+        delta = float(value)
+    except (TypeError, ValueError):
+        delta = np.nan
+    if not (np.isfinite(delta) and abs(delta) <= MAX_DELTA_DEGC):
+        raise WeatherError(f"{name}: {value!r} is not a finite number in [-{MAX_DELTA_DEGC:g}, {MAX_DELTA_DEGC:g}]")
+    return delta
 
 
 def warmed(params: GeneratorParameters, warming_degc: float) -> GeneratorParameters:
@@ -240,18 +254,57 @@ def warmed(params: GeneratorParameters, warming_degc: float) -> GeneratorParamet
     wind and dew-point depression, so vapour pressure rises with TMIN). Named ``<name><warming>C``
     (``benton+4C``), so a warmed climate's seasons (their source names the parameters) are told apart from the
     original's. 0 returns ``params``."""
-    try:
-        warming = float(warming_degc)
-    except (TypeError, ValueError):
-        warming = np.nan
-    if not (np.isfinite(warming) and abs(warming) <= MAX_WARMING_DEGC):
-        raise WeatherError(f"warming_degc: {warming_degc!r} is not a finite number in "
-                           f"[-{MAX_WARMING_DEGC:g}, {MAX_WARMING_DEGC:g}]")
+    warming = _delta_degc("warming_degc", warming_degc)
     if warming == 0.0:
         return params
     shifted = {name: tuple(float(v) + warming for v in getattr(params, name))
                for name in ("tmax_mean_dry_degc", "tmax_mean_wet_degc", "tmin_mean_dry_degc", "tmin_mean_wet_degc")}
     return replace(params, name=f"{params.name}{warming:+g}C", **shifted)
+
+
+def dried(params: GeneratorParameters, drying_degc: float) -> GeneratorParameters:
+    """``params`` with every monthly mean dew-point depression (TMIN - dew point) raised by ``drying_degc``: the
+    same temperatures, rain, radiation and wind under drier air (lower vapour pressure, so higher FAO-56 ET0),
+    the humidity delta-change beside :func:`warmed`'s temperature one. Named ``<name><drying>DPD``
+    (``benton+4C+8DPD``). 0 returns ``params``; WeatherError for a site fitted without humidity data (its
+    vapour pressure follows FAO-56's missing-data rule, e_a = e0(TMIN), which has no depression to raise)."""
+    drying = _delta_degc("drying_degc", drying_degc)
+    if drying == 0.0:
+        return params
+    if params.dew_point_depression_mean_degc is None:
+        raise WeatherError(f"drying_degc: {params.name} was fitted without humidity data; there is no dew-point "
+                           "depression to raise")
+    depression = tuple(float(v) + drying for v in params.dew_point_depression_mean_degc)
+    return replace(params, name=f"{params.name}{drying:+g}DPD", dew_point_depression_mean_degc=depression)
+
+
+# A climate's name: a fitted generator, then optionally its warming (C) and its drying (DPD), as warmed and
+# dried write them.
+_CLIMATE_NAME = re.compile(r"(?P<generator>[a-z_]+)(?:(?P<warming>[+-][0-9.]+)C)?(?:(?P<drying>[+-][0-9.]+)DPD)?")
+
+
+def climate_name(generator: str, warming_degc: float = 0.0, drying_degc: float = 0.0) -> str:
+    """The name of ``generator`` warmed by ``warming_degc`` and dried by ``drying_degc`` (``benton+4C+8DPD``):
+    the name the climate's parameters and its seasons' source carry."""
+    return (generator + (f"{float(warming_degc):+g}C" if warming_degc else "")
+            + (f"{float(drying_degc):+g}DPD" if drying_degc else ""))
+
+
+def climate_parameters(climate: str) -> GeneratorParameters:
+    """The parameters of ``climate`` (``benton``, ``benton+4C``, ``benton+4C+8DPD``: see :func:`climate_name`);
+    WeatherError naming the fitted generators for an unknown one."""
+    match = _CLIMATE_NAME.fullmatch(str(climate))
+    if match is None or match["generator"] not in GENERATOR_NAMES:
+        raise WeatherError(f"no climate {climate!r}: a fitted generator ({', '.join(GENERATOR_NAMES)}), optionally "
+                           "warmed and dried as in benton+4C or benton+4C+8DPD")
+    try:
+        warming, drying = (float(match[key] or 0.0) for key in ("warming", "drying"))
+    except ValueError:
+        raise WeatherError(f"no climate {climate!r}: its warming or drying is not a number") from None
+    params = dried(warmed(generator_parameters(match["generator"]), warming), drying)
+    if params.name != climate:  # e.g. benton+4.0C, which no generated season's source is named
+        raise WeatherError(f"no climate {climate!r}: its parameters are named {params.name!r}")
+    return params
 
 
 def benton_parameters() -> GeneratorParameters:
