@@ -317,7 +317,7 @@ def test_evaluation_sets_carry_the_task_terms_to_other_weather():
     from crop_sim_ros.task.scenario import get_scenario
     task = get_scenario(TASK)
     sets = et.evaluation_sets(task, far_seasons=3)
-    late = ["maricopa-late-generated", "maricopa-late-real"]
+    late = ["maricopa-late-generated", "maricopa-late-real", "maricopa-march15-generated"]
     assert [s.name for s in sets] == ["heldout-real", "far-benton", "maricopa-generated", "maricopa-real"] + late
     for s in sets:
         assert s.scenario.economics == task.economics and s.scenario.limits == task.limits
@@ -325,7 +325,7 @@ def test_evaluation_sets_carry_the_task_terms_to_other_weather():
     far, maricopa = sets[1].scenario.weather, sets[2].scenario.weather
     assert (far.generator, far.seed, far.n_seasons) == ("benton", 900_001, 3)
     assert (maricopa.generator, maricopa.seed) == ("maricopa", 900_001)
-    assert [len(s.seasons) for s in sets] == [5, 3, 3, 3, 3, 3]
+    assert [len(s.seasons) for s in sets] == [5, 3, 3, 3, 3, 3, 3]
     assert "transfer test: trained on benton weather only" in sets[2].role and "transfer" in sets[3].role
     # the held-out climate sown late: its own pool's seed + the far seed's offset, so no January draw repeats
     late_generated, late_real = sets[4].scenario, sets[5].scenario
@@ -333,6 +333,10 @@ def test_evaluation_sets_carry_the_task_terms_to_other_weather():
     assert str(late_generated.sowing_date) == "2001-02-28" and "sown February 28" in sets[4].role
     assert [str(f.sowing_date) for f in late_real.weather.seasons] == ["2007-02-28", "2008-02-28", "2009-02-28"]
     assert late_real.economics == task.economics and "transfer" in sets[5].role
+    # the blind check, sown later still: its own pool's seed + the far seed's offset
+    blind = sets[6].scenario
+    assert (blind.weather.generator, blind.weather.seed, str(blind.sowing_date)) == ("maricopa", 900_003, "2001-03-15")
+    assert "sown March 15, a blind check" in sets[6].role and blind.economics == task.economics
     climates = et.evaluation_sets(get_scenario("climates-quota"), far_seasons=2)
     assert [s.name for s in climates] == ["heldout-real", "far-benton", "far-gainesville", "maricopa-generated",
                                           "maricopa-real"] + late

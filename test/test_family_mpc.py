@@ -142,6 +142,8 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
     # the held-out climate sown late draws its continuations from a pool sown on the same date
     name, late = fm.continuation_source(task, "maricopa-late-real")
     assert (name, late.name, str(late.sowing_date)) == ("maricopa", "maricopa-late-generated", "2001-02-28")
+    name, blind = fm.continuation_source(task, "maricopa-march15-generated")
+    assert (name, blind.name, str(blind.sowing_date)) == ("maricopa", "maricopa-march15-generated", "2001-03-15")
     name, early = fm.continuation_source(task, "far-benton-early")
     assert (name, early.name, str(early.sowing_date)) == ("benton-early", "benton-early-generated", "2000-03-01")
     with pytest.raises(ValueError, match="climates3-quota has no climate 'nowhere'"):

@@ -13,9 +13,12 @@ nothing here was seen in training or used to choose anything):
   task trained on one climate (the Benton tasks) these are a transfer test, and the tables say so;
 - ``far-<part>``: a mixture part on a generator another part also uses, i.e. the same site sown on another
   date (``climates3-quota``'s ``far-benton-early``), named by its scenario (``benton-early-generated``);
-- ``maricopa-late-generated`` (weather seed ``--far-seed`` + 1) and ``maricopa-late-real`` (last): the held-out
+- ``maricopa-late-generated`` (weather seed ``--far-seed`` + 1) and ``maricopa-late-real``: the held-out
   climate sown February 28, where a quota's timing matters more (the rule's headroom is >= 2 % there, under
-  2 % when sown January 15).
+  2 % when sown January 15);
+- ``maricopa-march15-generated`` (weather seed ``--far-seed`` + 2, last): the held-out climate sown March 15, a
+  blind check: the late-sown sets were used to diagnose the agents' transfer and to design training climates
+  after it; this one chooses nothing.
 
 Terms: one draw of the task's episode terms (tuber price, water cost, quota) per season and set, from a
 fixed seed (``--terms-seed`` + the set's position), the same for every policy; each policy runs every season
@@ -86,6 +89,7 @@ LEARNING_RATIO = 0.5        # learning is real when final regret <= this x the 1
 HELD_OUT_REAL = "heldout-real"
 MARICOPA = ("maricopa-generated", "maricopa-real")
 MARICOPA_LATE = ("maricopa-late-generated", "maricopa-late-real")
+MARICOPA_BLIND = "maricopa-march15-generated"
 RULE = "budget-rule"
 ORACLE = "oracle"
 KINDS = ("oracle", "rule", "agent", "early")
@@ -121,7 +125,8 @@ def add_task_arguments(parser) -> None:
     parser.add_argument("--bootstrap-seed", type=int, default=0)
     parser.add_argument("--sets", default=None,
                         help="comma-separated evaluation sets (default all: heldout-real, far-<generator>..., "
-                             "maricopa-generated, maricopa-real, far-<part>..., maricopa-late-generated, maricopa-late-real); "
+                             "maricopa-generated, maricopa-real, far-<part>..., maricopa-late-generated, maricopa-late-real, "
+                             "maricopa-march15-generated); "
                              "a set's terms are the same as in the whole protocol")
     parser.add_argument("--oracle", action=argparse.BooleanOptionalAction, default=True,
                         help="plan the hindsight oracle per season (regret); --no-oracle: gaps to the best "
@@ -213,6 +218,12 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
                               np.arange(far_seasons)))
     sets.append(EvaluationSet("maricopa-late-real", f"{held_out_climate}, {late} (Maricopa AZ, real seasons 2007-2009)",
                               with_weather_of(task, late_real), np.arange(late_real.n_seasons)))
+    # A blind check of the held-out climate, sown later still: the late sets above were used to diagnose the
+    # agents' transfer and to design training climates after it (climates6/8/10-quota); this one chooses nothing.
+    blind = get_scenario(MARICOPA_BLIND, task.data_dir)
+    sets.append(EvaluationSet(MARICOPA_BLIND, f"{held_out_climate}, sown {blind.sowing_date:%B} {blind.sowing_date.day}, "
+                              f"a blind check (Maricopa AZ generator, seed {far_seed + 2})",
+                              with_weather_of(task, reseeded(blind, far_seed + 2, far_seasons)), np.arange(far_seasons)))
     return sets
 
 

@@ -294,8 +294,9 @@ def continuation_source(task, set_name: str, asked: str | None = None):
         if name not in parts:
             raise ValueError(f"family MPC: {task.name} has no climate {name!r} (climates: {', '.join(parts)})")
         return name, parts[name]
-    if set_name.startswith("maricopa-late-"):  # the held-out climate sown late: its own sowing date's pool
-        return "maricopa", get_scenario("maricopa-late-generated", task.data_dir)
+    for sown in ("maricopa-late-", "maricopa-march15-"):  # the held-out climate sown later: its own date's pool
+        if set_name.startswith(sown):
+            return "maricopa", get_scenario(f"{sown}generated", task.data_dir)
     # the held-out real seasons and the held-out climate's sets: the site climate their real scenario names
     real = "heldout" if set_name == "heldout-real" else "maricopa-real" if set_name.startswith("maricopa-") else None
     if real is not None:
