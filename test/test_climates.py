@@ -268,3 +268,19 @@ def test_climate_scenario_loads_builds_its_table_and_the_potato_matures(name):
                                 weather["rain_mm"], et0, irrigation_mm).final_state
         assert np.all(final.mature), f"{name}: {np.sum(~final.mature)} seasons not mature at {irrigation_mm} mm/day"
         assert np.all(final.maturity_day < table.n_days)
+
+
+def test_climate_summary_describes_a_scenario_and_refuses_an_unknown_one(capsys):
+    from crop_sim_ros.task import climate_summary
+    row = climate_summary.summary("benton-hot-dry-generated", max_seasons=5)
+    warm = climate_summary.summary("benton-warm-generated", max_seasons=5)
+    assert row["seasons"] == 5 and row["days_0mm"] <= row["days_10mm"] < 200
+    assert row["yield_t_ha_0mm"] < row["yield_t_ha_10mm"]
+    # +6 degC in drier air against +4 degC: faster, drier air, more demand per day
+    assert row["days_10mm"] < warm["days_10mm"] and row["vap_hpa"] < warm["vap_hpa"] - 2
+    assert row["et0_mm_d"] > warm["et0_mm_d"]
+    assert climate_summary.main(["benton-generated", "--seasons", "3"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("| scenario | seasons |") and lines[2].startswith("| `benton-generated` | 3 |")
+    assert climate_summary.main(["atlantis"]) == 2
+    assert "unknown scenario 'atlantis'" in capsys.readouterr().err
