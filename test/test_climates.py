@@ -240,6 +240,8 @@ SCENARIOS = {
     "maricopa-march15-generated": (1000, "2001-03-15", "2001-03-15"),
     "benton-hot-dry-generated": (1000, "2000-04-01", "2000-04-01"),
     "benton-march15-hot-dry-generated": (1000, "2000-03-15", "2000-03-15"),
+    "benton-hot-arid-generated": (1000, "2000-04-01", "2000-04-01"),
+    "benton-march15-hot-arid-generated": (1000, "2000-03-15", "2000-03-15"),
     "benton-warm-generated": (1000, "2000-04-01", "2000-04-01"),
     "gainesville-warm-generated": (1000, "2001-02-01", "2001-02-01"),
     "benton-late-generated": (1000, "2000-05-01", "2000-05-01"),

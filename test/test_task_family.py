@@ -232,7 +232,7 @@ def test_climates4_holds_climates3s_seasons_first_and_a_warmed_early_benton_part
     values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
               "weather": {"kind": "seasons", "warming_degc": 1.0,
                           "seasons": [{"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}}
-    with pytest.raises(ValueError, match="weather.warming_degc, drying_degc: only a 'generator' source can be warmed"):
+    with pytest.raises(ValueError, match="weather.warming_degc, drying_degc, rain_factor: only a 'generator' source can be warmed"):
         scenario_from_dict(values)
     with pytest.raises(ValueError, match="weather.warming_degc"):
         scenario_from_dict({**values, "sowing_date": "2000-04-01",
@@ -288,13 +288,35 @@ def test_climates10_holds_climates8s_seasons_first_and_two_hotter_drier_parts():
     # drying is a generator's option, for a generator fitted with humidity data, within +-10 degC
     values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
               "sowing_date": "2000-04-01"}
-    with pytest.raises(ValueError, match="only a 'generator' source can be warmed or dried"):
+    with pytest.raises(ValueError, match="only a 'generator' source can be warmed, dried"):
         scenario_from_dict({**values, "weather": {"kind": "seasons", "drying_degc": 1.0, "seasons": [
             {"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}})
     with pytest.raises(ValueError, match="weather.drying_degc"):
         scenario_from_dict({**values, "weather": {"kind": "generator", "generator": "benton", "drying_degc": -11}})
     with pytest.raises(ValueError, match="gainesville was fitted without humidity data"):
         scenario_from_dict({**values, "weather": {"kind": "generator", "generator": "gainesville", "drying_degc": 2}})
+
+
+def test_climates12_holds_climates10s_seasons_first_and_its_hot_dry_parts_with_a_third_of_the_rain():
+    from crop_sim_ros.task.scenario import climates
+    ten, twelve = get_scenario("climates10-quota"), get_scenario("climates12-quota")
+    assert twelve.n_seasons == 12_000 and twelve.economics == ten.economics and twelve.limits == ten.limits
+    assert list(climates(twelve))[10:] == ["benton-hot-arid", "benton-march15-hot-arid"]
+    table10, table12 = core.scenario_table(ten), core.scenario_table(twelve)
+    for k in (0, 8000, 9999):
+        np.testing.assert_array_equal(table12.weather[k], table10.weather[k])
+    assert [str(table12.sowing_dates[k]) for k in (10_000, 11_000)] == ["2000-04-01", "2000-03-15"]
+    assert table12.sources[10_000].startswith("generator(benton+6C+8DPDx0.3R, seed=8")
+    rain = WEATHER_NAMES.index("rain_mm")
+    arid, dry = table12.weather[10_000:10_100, :100, rain].sum(axis=1), table12.weather[8000:8100, :100, rain].sum(axis=1)
+    assert 0 < arid.mean() < 0.5 * dry.mean()
+    values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
+              "sowing_date": "2000-04-01"}
+    with pytest.raises(ValueError, match="weather.rain_factor"):
+        scenario_from_dict({**values, "weather": {"kind": "generator", "generator": "benton", "rain_factor": -1}})
+    with pytest.raises(ValueError, match="only a 'generator' source can be warmed, dried or its rain scaled"):
+        scenario_from_dict({**values, "weather": {"kind": "seasons", "rain_factor": 0.5, "seasons": [
+            {"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}})
 
 
 def test_real_seasons_name_their_sites_climate_and_only_they_do():
@@ -331,7 +353,7 @@ def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
                  "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot",
                  "climates4-quota", "benton-early-warm-quota", "climates6-quota", "maricopa-late-quota",
-                 "climates8-quota", "climates10-quota"):
+                 "climates8-quota", "climates10-quota", "climates12-quota"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))

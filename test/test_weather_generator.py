@@ -333,16 +333,35 @@ def test_a_dried_generator_lowers_the_vapour_pressure_and_nothing_else_it_draws(
             dried(params, bad)
 
 
+def test_a_rain_scaled_generator_scales_every_rain_amount_and_nothing_else_it_draws():
+    from crop_sim_ros.weather.generator import rain_scaled
+    params = benton_parameters()
+    assert rain_scaled(params, 1.0) is params
+    arid = rain_scaled(params, 0.3)
+    assert arid.name == "bentonx0.3R"
+    base, dry = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, arid))
+    assert sum(b.rain_mm.sum() for b in base) > 100
+    for b, a in zip(base, dry):
+        np.testing.assert_allclose(a.rain_mm, 0.3 * b.rain_mm, rtol=1e-12)  # the same wet days, 0.3 x the rain
+        for name in ("tmax_degc", "tmin_degc", "srad_mj_m2", "vap_hpa", "wind_m_s"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    for bad in (-0.1, 3.5, float("nan"), "dry"):
+        with pytest.raises(WeatherError, match="rain_factor"):
+            rain_scaled(params, bad)
+
+
 def test_a_climate_name_gives_its_parameters_and_a_malformed_one_is_refused_by_name():
-    from crop_sim_ros.weather.generator import climate_name, climate_parameters, dried, warmed
-    for generator, warming, drying, name in (("benton", 0, 0, "benton"), ("benton", 4, 0, "benton+4C"),
-                                             ("maricopa", -1.5, 0, "maricopa-1.5C"),
-                                             ("benton", 6, 8, "benton+6C+8DPD"), ("benton", 0, 3, "benton+3DPD")):
-        assert climate_name(generator, warming, drying) == name
-        assert climate_parameters(name) == dried(warmed(generator_parameters(generator), warming), drying)
-        assert climate_parameters(name).name == name
-    for bad in ("mars", "benton+4", "benton+4.0C", "benton+xC", "benton+8DPD+4C", "benton+11C", "gainesville+1DPD"):
-        with pytest.raises(WeatherError, match=r"climate|drying|warming"):
+    from crop_sim_ros.weather.generator import climate_name, climate_parameters, dried, rain_scaled, warmed
+    for generator, warming, drying, rain, name in (
+            ("benton", 0, 0, 1, "benton"), ("benton", 4, 0, 1, "benton+4C"), ("maricopa", -1.5, 0, 1, "maricopa-1.5C"),
+            ("benton", 6, 8, 1, "benton+6C+8DPD"), ("benton", 0, 3, 1, "benton+3DPD"),
+            ("benton", 6, 8, 0.3, "benton+6C+8DPDx0.3R"), ("gainesville", 0, 0, 2, "gainesvillex2R")):
+        assert climate_name(generator, warming, drying, rain) == name
+        expected = rain_scaled(dried(warmed(generator_parameters(generator), warming), drying), rain)
+        assert climate_parameters(name) == expected and climate_parameters(name).name == name
+    for bad in ("mars", "benton+4", "benton+4.0C", "benton+xC", "benton+8DPD+4C", "benton+11C", "gainesville+1DPD",
+                "bentonx0.3", "bentonx0.30R", "bentonx4R", "bentonx0.3R+4C"):
+        with pytest.raises(WeatherError, match=r"climate|drying|warming|rain_factor"):
             climate_parameters(bad)
 
 

@@ -192,6 +192,8 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
             sown += f", {source.weather.warming_degc:+g} degC"
         if source.weather.drying_degc:
             sown += f", dew-point depression {source.weather.drying_degc:+g} degC"
+        if source.weather.rain_factor != 1.0:
+            sown += f", rain x {source.weather.rain_factor:g}"
         far = replace(reseeded(source, far_seed, far_seasons), name=f"{name}-generated-seed{far_seed}")
         (sets if name == generator else other_dates).append(EvaluationSet(
             f"far-{name}", f"far generated seeds ({generator} generator{sown}, seed {far_seed})",

@@ -12,7 +12,8 @@ Weather sources (``weather.kind``):
   ``n_seasons: 1`` is a single fixed generated season. ``warming_degc`` (default 0, at most 10 either way)
   raises the generator's mean TMAX and TMIN by that much (a delta-change climate scenario,
   ``crop_sim_ros.weather.generator.warmed``); ``drying_degc`` (likewise) raises its mean dew-point depression
-  (TMIN - dew point: drier air, ``dried``; only for a generator fitted with humidity data). Needs no file.
+  (TMIN - dew point: drier air, ``dried``; only for a generator fitted with humidity data); ``rain_factor``
+  (default 1, in [0, 3]) multiplies every wet day's rain (``rain_scaled``). Needs no file.
 - ``file``: one weather file (``path``, ``format``), the season starting on ``sowing_date``.
 - ``seasons``: several (file, format, sowing date) seasons; ``reset`` picks one (or the one asked for).
   A ``file`` or ``seasons`` source may name its site's ``climate``: the fitted generator of that site (what a
@@ -24,7 +25,8 @@ Weather sources (``weather.kind``):
 A scenario file may derive from another (``base: NAME``, a built-in name or a YAML path beside it): it takes
 the base's fields and replaces those it names (``noise``, ``economics`` and ``limits`` field by field). The
 task family's scenarios (``benton-money``, ``benton-quota``, ``benton-capacity``, ``benton-sensing``,
-``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``, ``climates8-quota``, ``climates10-quota``, ``benton-early-quota``,
+``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``, ``climates8-quota``, ``climates10-quota``,
+``climates12-quota``, ``benton-early-quota``,
 ``benton-early-pivot``, ``benton-early-warm-quota``, ``maricopa-late-quota``) derive from
 ``benton-generated`` this way; their terms are documented in :mod:`crop_sim_ros.task.terms`.
 
@@ -70,7 +72,8 @@ from ..model import FieldParameters, Management, UnknownNameError, crop_library,
 from ..model.et0 import ET0_METHODS
 from ..weather import GENERATOR_NAMES, Site, WeatherSeries, read_agweathernet_csv, read_dssat_wth
 from ..weather.csv_readers import read_plain_csv
-from ..weather.generator import MAX_DELTA_DEGC, climate_name, climate_parameters, generate_seasons
+from ..weather.generator import (MAX_DELTA_DEGC, MAX_RAIN_FACTOR, MIN_RAIN_FACTOR, climate_name, climate_parameters,
+                                 generate_seasons)
 from .layout import EXTENDED, PAPER, ObservationLayout
 from .terms import Economics, FarmLimits, check_number as _check_number
 
@@ -171,6 +174,7 @@ class WeatherSource:
     mixture: tuple[str, ...] = ()
     warming_degc: float = 0.0
     drying_degc: float = 0.0
+    rain_factor: float = 1.0
     climate: str = ""  # real seasons: their site's fitted generator ('' none; a generated source's is its own)
 
     def __post_init__(self) -> None:
@@ -183,6 +187,8 @@ class WeatherSource:
             for delta in ("warming_degc", "drying_degc"):
                 object.__setattr__(self, delta, _check_number(f"weather.{delta}", getattr(self, delta),
                                                               -MAX_DELTA_DEGC, MAX_DELTA_DEGC))
+            object.__setattr__(self, "rain_factor", _check_number("weather.rain_factor", self.rain_factor,
+                                                                  MIN_RAIN_FACTOR, MAX_RAIN_FACTOR))
             if self.drying_degc:  # refused here, by name, for a generator fitted without humidity data
                 climate_parameters(self.generated_climate)
             _check_count("weather.n_seasons", self.n_seasons, MAX_GENERATED_SEASONS)
@@ -200,15 +206,15 @@ class WeatherSource:
                              "source's climate is its generator's")
         if self.climate and self.climate not in GENERATOR_PARAMETERS:
             raise ValueError(f"weather.climate: {self.climate!r} is not one of {', '.join(GENERATOR_PARAMETERS)}")
-        if self.kind != "generator" and (self.warming_degc != 0.0 or self.drying_degc != 0.0):
-            raise ValueError(f"weather.warming_degc, drying_degc: only a 'generator' source can be warmed or dried, "
-                             f"not {self.kind!r}")
+        if self.kind != "generator" and (self.warming_degc, self.drying_degc, self.rain_factor) != (0.0, 0.0, 1.0):
+            raise ValueError(f"weather.warming_degc, drying_degc, rain_factor: only a 'generator' source can be warmed, "
+                             f"dried or its rain scaled, not {self.kind!r}")
 
     @property
     def generated_climate(self) -> str:
-        """A generator source's climate: its generator, warmed and dried as it says (``benton+4C+8DPD``), the
-        name its seasons' source carries."""
-        return climate_name(self.generator, self.warming_degc, self.drying_degc)
+        """A generator source's climate: its generator, warmed, dried and its rain scaled as it says
+        (``benton+6C+8DPDx0.3R``), the name its seasons' source carries."""
+        return climate_name(self.generator, self.warming_degc, self.drying_degc, self.rain_factor)
 
 
 # What a weather mapping may name besides its seasons (a file source's path and format become its one season).

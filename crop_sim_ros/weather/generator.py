@@ -278,30 +278,55 @@ def dried(params: GeneratorParameters, drying_degc: float) -> GeneratorParameter
     return replace(params, name=f"{params.name}{drying:+g}DPD", dew_point_depression_mean_degc=depression)
 
 
-# A climate's name: a fitted generator, then optionally its warming (C) and its drying (DPD), as warmed and
-# dried write them.
-_CLIMATE_NAME = re.compile(r"(?P<generator>[a-z_]+)(?:(?P<warming>[+-][0-9.]+)C)?(?:(?P<drying>[+-][0-9.]+)DPD)?")
+# Rain factors a scenario may apply to a generator's rain amounts.
+MIN_RAIN_FACTOR, MAX_RAIN_FACTOR = 0.0, 3.0
 
 
-def climate_name(generator: str, warming_degc: float = 0.0, drying_degc: float = 0.0) -> str:
-    """The name of ``generator`` warmed by ``warming_degc`` and dried by ``drying_degc`` (``benton+4C+8DPD``):
-    the name the climate's parameters and its seasons' source carry."""
+def rain_scaled(params: GeneratorParameters, rain_factor: float) -> GeneratorParameters:
+    """``params`` with every wet day's rain multiplied by ``rain_factor`` (the delta-change of precipitation: the
+    same wet days, smaller or larger amounts; the wet-day threshold and the gamma scale of the excess both scale,
+    so a generated day's rain is exactly ``rain_factor`` times the original's). Named ``<name>x<factor>R``
+    (``benton+6C+8DPDx0.3R``). 1 returns ``params``."""
+    try:
+        factor = float(rain_factor)
+    except (TypeError, ValueError):
+        factor = np.nan
+    if not (np.isfinite(factor) and MIN_RAIN_FACTOR <= factor <= MAX_RAIN_FACTOR):
+        raise WeatherError(f"rain_factor: {rain_factor!r} is not a finite number in "
+                           f"[{MIN_RAIN_FACTOR:g}, {MAX_RAIN_FACTOR:g}]")
+    if factor == 1.0:
+        return params
+    return replace(params, name=f"{params.name}x{factor:g}R", wet_day_threshold_mm=params.wet_day_threshold_mm * factor,
+                   rain_excess_scale_mm=tuple(float(v) * factor for v in params.rain_excess_scale_mm))
+
+
+# A climate's name: a fitted generator, then optionally its warming (C), its drying (DPD) and its rain factor (R),
+# as warmed, dried and rain_scaled write them.
+_CLIMATE_NAME = re.compile(r"(?P<generator>[a-z_]+)(?:(?P<warming>[+-][0-9.]+)C)?(?:(?P<drying>[+-][0-9.]+)DPD)?"
+                           r"(?:x(?P<rain>[0-9.]+)R)?")
+
+
+def climate_name(generator: str, warming_degc: float = 0.0, drying_degc: float = 0.0, rain_factor: float = 1.0) -> str:
+    """The name of ``generator`` warmed by ``warming_degc``, dried by ``drying_degc`` and its rain scaled by
+    ``rain_factor`` (``benton+6C+8DPDx0.3R``): the name the climate's parameters and its seasons' source carry."""
     return (generator + (f"{float(warming_degc):+g}C" if warming_degc else "")
-            + (f"{float(drying_degc):+g}DPD" if drying_degc else ""))
+            + (f"{float(drying_degc):+g}DPD" if drying_degc else "")
+            + (f"x{float(rain_factor):g}R" if rain_factor != 1.0 else ""))
 
 
 def climate_parameters(climate: str) -> GeneratorParameters:
-    """The parameters of ``climate`` (``benton``, ``benton+4C``, ``benton+4C+8DPD``: see :func:`climate_name`);
+    """The parameters of ``climate`` (``benton``, ``benton+4C``, ``benton+6C+8DPDx0.3R``: see :func:`climate_name`);
     WeatherError naming the fitted generators for an unknown one."""
     match = _CLIMATE_NAME.fullmatch(str(climate))
     if match is None or match["generator"] not in GENERATOR_NAMES:
         raise WeatherError(f"no climate {climate!r}: a fitted generator ({', '.join(GENERATOR_NAMES)}), optionally "
-                           "warmed and dried as in benton+4C or benton+4C+8DPD")
+                           "warmed, dried and its rain scaled as in benton+4C, benton+4C+8DPD or benton+6C+8DPDx0.3R")
     try:
         warming, drying = (float(match[key] or 0.0) for key in ("warming", "drying"))
+        rain = float(match["rain"] or 1.0)
     except ValueError:
-        raise WeatherError(f"no climate {climate!r}: its warming or drying is not a number") from None
-    params = dried(warmed(generator_parameters(match["generator"]), warming), drying)
+        raise WeatherError(f"no climate {climate!r}: its warming, drying or rain factor is not a number") from None
+    params = rain_scaled(dried(warmed(generator_parameters(match["generator"]), warming), drying), rain)
     if params.name != climate:  # e.g. benton+4.0C, which no generated season's source is named
         raise WeatherError(f"no climate {climate!r}: its parameters are named {params.name!r}")
     return params
