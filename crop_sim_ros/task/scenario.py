@@ -25,9 +25,9 @@ Weather sources (``weather.kind``):
 A scenario file may derive from another (``base: NAME``, a built-in name or a YAML path beside it): it takes
 the base's fields and replaces those it names (``noise``, ``economics`` and ``limits`` field by field). The
 task family's scenarios (``benton-money``, ``benton-quota``, ``benton-capacity``, ``benton-sensing``,
-``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``, ``climates8-quota``, ``climates10-quota``,
-``climates12-quota``, ``benton-early-quota``,
-``benton-early-pivot``, ``benton-early-warm-quota``, ``maricopa-late-quota``) derive from
+``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``,
+``climates8-quota``, ``climates10-quota``, ``climates12-quota``, ``benton-early-quota``, ``benton-early-pivot``,
+``benton-early-warm-quota``, ``maricopa-late-quota``) derive from
 ``benton-generated`` this way; their terms are documented in :mod:`crop_sim_ros.task.terms`.
 
 File formats: ``agweathernet`` (AgWeatherNet daily CSV), ``dssat`` (DSSAT .WTH), ``csv`` (the plain daily CSV of
