@@ -257,30 +257,35 @@ def test_climates6_holds_climates4s_seasons_first_and_two_warmed_parts_that_deve
         assert table6.weather[warm:warm + 50, :100, tmax].mean() > table6.weather[cool:cool + 50, :100, tmax].mean() + 2
 
 
-def test_climates8_holds_climates6s_seasons_first_and_two_parts_sown_may_1():
+def _grown_task_tables(smaller: str, larger: str, added_parts: list[str], added_sources: list[str],
+                       added_sowing_dates: list[str]):
+    """Check that task ``larger`` is ``smaller`` (same terms, same seasons at the same pool positions) plus one
+    1000-season part per ``added_parts`` name, each sown on its date with a source starting as given; return
+    both tasks' season tables."""
     from crop_sim_ros.task.scenario import climates
-    six, eight = get_scenario("climates6-quota"), get_scenario("climates8-quota")
-    assert eight.n_seasons == 8000 and list(climates(eight))[6:] == ["benton-late", "benton-late-warm"]
-    table6, table8 = core.scenario_table(six), core.scenario_table(eight)
-    for k in (0, 4000, 5999):
-        np.testing.assert_array_equal(table8.weather[k], table6.weather[k])
-    assert [str(table8.sowing_dates[k]) for k in (6000, 7000)] == ["2000-05-01", "2000-05-01"]
-    assert table8.sources[6000].startswith("generator(benton, seed=4")
-    assert table8.sources[7000].startswith("generator(benton+4C, seed=5")
+    small, large = get_scenario(smaller), get_scenario(larger)
+    n = small.n_seasons
+    assert large.n_seasons == n + 1000 * len(added_parts)
+    assert large.economics == small.economics and large.limits == small.limits
+    assert list(climates(large)) == list(climates(small)) + added_parts
+    table_small, table_large = core.scenario_table(small), core.scenario_table(large)
+    for k in (0, n // 2, n - 1):
+        np.testing.assert_array_equal(table_large.weather[k], table_small.weather[k])
+    for i, (source, sown) in enumerate(zip(added_sources, added_sowing_dates)):
+        assert str(table_large.sowing_dates[n + 1000 * i]) == sown
+        assert table_large.sources[n + 1000 * i].startswith(f"generator({source}")
+    return table_small, table_large
+
+
+def test_climates8_holds_climates6s_seasons_first_and_two_parts_sown_may_1():
+    _grown_task_tables("climates6-quota", "climates8-quota", ["benton-late", "benton-late-warm"],
+                       ["benton, seed=4", "benton+4C, seed=5"], ["2000-05-01", "2000-05-01"])
 
 
 def test_climates10_holds_climates8s_seasons_first_and_two_hotter_drier_parts():
     from crop_agent_ros.policies.outlook import scenario_climate
-    from crop_sim_ros.task.scenario import climates
-    eight, ten = get_scenario("climates8-quota"), get_scenario("climates10-quota")
-    assert ten.n_seasons == 10_000 and ten.economics == eight.economics and ten.limits == eight.limits
-    assert list(climates(ten))[8:] == ["benton-hot-dry", "benton-march15-hot-dry"]
-    table8, table10 = core.scenario_table(eight), core.scenario_table(ten)
-    for k in (0, 5000, 7999):
-        np.testing.assert_array_equal(table10.weather[k], table8.weather[k])
-    assert [str(table10.sowing_dates[k]) for k in (8000, 9000)] == ["2000-04-01", "2000-03-15"]
-    assert table10.sources[8000].startswith("generator(benton+6C+8DPD, seed=6")
-    assert table10.sources[9000].startswith("generator(benton+6C+8DPD, seed=7")
+    _, table10 = _grown_task_tables("climates8-quota", "climates10-quota", ["benton-hot-dry", "benton-march15-hot-dry"],
+                                    ["benton+6C+8DPD, seed=6", "benton+6C+8DPD, seed=7"], ["2000-04-01", "2000-03-15"])
     assert scenario_climate(get_scenario("benton-hot-dry-generated")) == "benton+6C+8DPD"
     # drier air than the part warmed as much without drying would have: vapour pressure is WEATHER_NAMES' vap_hpa
     vap = WEATHER_NAMES.index("vap_hpa")
@@ -298,15 +303,9 @@ def test_climates10_holds_climates8s_seasons_first_and_two_hotter_drier_parts():
 
 
 def test_climates12_holds_climates10s_seasons_first_and_its_hot_dry_parts_with_a_third_of_the_rain():
-    from crop_sim_ros.task.scenario import climates
-    ten, twelve = get_scenario("climates10-quota"), get_scenario("climates12-quota")
-    assert twelve.n_seasons == 12_000 and twelve.economics == ten.economics and twelve.limits == ten.limits
-    assert list(climates(twelve))[10:] == ["benton-hot-arid", "benton-march15-hot-arid"]
-    table10, table12 = core.scenario_table(ten), core.scenario_table(twelve)
-    for k in (0, 8000, 9999):
-        np.testing.assert_array_equal(table12.weather[k], table10.weather[k])
-    assert [str(table12.sowing_dates[k]) for k in (10_000, 11_000)] == ["2000-04-01", "2000-03-15"]
-    assert table12.sources[10_000].startswith("generator(benton+6C+8DPDx0.3R, seed=8")
+    _, table12 = _grown_task_tables("climates10-quota", "climates12-quota", ["benton-hot-arid", "benton-march15-hot-arid"],
+                                    ["benton+6C+8DPDx0.3R, seed=8", "benton+6C+8DPDx0.3R, seed=9"],
+                                    ["2000-04-01", "2000-03-15"])
     rain = WEATHER_NAMES.index("rain_mm")
     arid, dry = table12.weather[10_000:10_100, :100, rain].sum(axis=1), table12.weather[8000:8100, :100, rain].sum(axis=1)
     assert 0 < arid.mean() < 0.5 * dry.mean()
