@@ -236,16 +236,16 @@ def generator_parameters(name: str) -> GeneratorParameters:
 MAX_DELTA_DEGC = 10.0
 
 
-def _delta_degc(name: str, value) -> float:
-    """``value`` as a float, or WeatherError naming ``name`` unless it is finite and within
-    +-:data:`MAX_DELTA_DEGC`."""
+def _bounded_number(name: str, value, low: float = -MAX_DELTA_DEGC, high: float = MAX_DELTA_DEGC) -> float:
+    """``value`` as a float, or WeatherError naming ``name`` unless it is finite and within [low, high] (by
+    default a delta-change's +-:data:`MAX_DELTA_DEGC`)."""
     try:
-        delta = float(value)
+        number = float(value)
     except (TypeError, ValueError):
-        delta = np.nan
-    if not (np.isfinite(delta) and abs(delta) <= MAX_DELTA_DEGC):
-        raise WeatherError(f"{name}: {value!r} is not a finite number in [-{MAX_DELTA_DEGC:g}, {MAX_DELTA_DEGC:g}]")
-    return delta
+        number = np.nan
+    if not (np.isfinite(number) and low <= number <= high):
+        raise WeatherError(f"{name}: {value!r} is not a finite number in [{low:g}, {high:g}]")
+    return number
 
 
 def warmed(params: GeneratorParameters, warming_degc: float) -> GeneratorParameters:
@@ -254,7 +254,7 @@ def warmed(params: GeneratorParameters, warming_degc: float) -> GeneratorParamet
     wind and dew-point depression, so vapour pressure rises with TMIN). Named ``<name><warming>C``
     (``benton+4C``), so a warmed climate's seasons (their source names the parameters) are told apart from the
     original's. 0 returns ``params``."""
-    warming = _delta_degc("warming_degc", warming_degc)
+    warming = _bounded_number("warming_degc", warming_degc)
     if warming == 0.0:
         return params
     shifted = {name: tuple(float(v) + warming for v in getattr(params, name))
@@ -268,7 +268,7 @@ def dried(params: GeneratorParameters, drying_degc: float) -> GeneratorParameter
     the humidity delta-change beside :func:`warmed`'s temperature one. Named ``<name><drying>DPD``
     (``benton+4C+8DPD``). 0 returns ``params``; WeatherError for a site fitted without humidity data (its
     vapour pressure follows FAO-56's missing-data rule, e_a = e0(TMIN), which has no depression to raise)."""
-    drying = _delta_degc("drying_degc", drying_degc)
+    drying = _bounded_number("drying_degc", drying_degc)
     if drying == 0.0:
         return params
     if params.dew_point_depression_mean_degc is None:
@@ -287,13 +287,7 @@ def rain_scaled(params: GeneratorParameters, rain_factor: float) -> GeneratorPar
     same wet days, smaller or larger amounts; the wet-day threshold and the gamma scale of the excess both scale,
     so a generated day's rain is exactly ``rain_factor`` times the original's). Named ``<name>x<factor>R``
     (``benton+6C+8DPDx0.3R``). 1 returns ``params``."""
-    try:
-        factor = float(rain_factor)
-    except (TypeError, ValueError):
-        factor = np.nan
-    if not (np.isfinite(factor) and MIN_RAIN_FACTOR <= factor <= MAX_RAIN_FACTOR):
-        raise WeatherError(f"rain_factor: {rain_factor!r} is not a finite number in "
-                           f"[{MIN_RAIN_FACTOR:g}, {MAX_RAIN_FACTOR:g}]")
+    factor = _bounded_number("rain_factor", rain_factor, MIN_RAIN_FACTOR, MAX_RAIN_FACTOR)
     if factor == 1.0:
         return params
     return replace(params, name=f"{params.name}x{factor:g}R", wet_day_threshold_mm=params.wet_day_threshold_mm * factor,
