@@ -17,12 +17,13 @@ demand_trend          1      2 ln(E60 / (60 x the mean normal ET0 of days s+t-14
 
 Normals: each climate's mean daily ET0 (FAO-56 Penman-Monteith, mm) by day of the year over
 :data:`NORMAL_YEARS` years drawn by its weather generator with seed :data:`NORMALS_SEED` (no training,
-validation, evaluation or continuation pool uses it). A climate is a fitted generator, warmed or dried or not
-(``benton``, ``benton+4C``, ``benton+4C+8DPD``: the name its seasons' source carries). A generated season's
-climate is read from its source; a real season's (held-out Benton, Maricopa) is its site's generator, as its scenario names it
-(``weather.climate``; for Maricopa's three real seasons, a generator whose fit includes those years: that
-set's outlook is not independent of it; the 50 generated Maricopa seasons are). The water-budget rule's ``outlook_pace``
-(:mod:`crop_agent_ros.policies.family`) reads the same normals (:func:`normal_share_today`).
+validation, evaluation or continuation pool uses it). A climate is a fitted generator, as fitted or with its
+temperature, humidity or rain delta-changed (``benton``, ``benton+4C``, ``benton+6C+8DPDx0.3R``: the name its
+seasons' source carries; :func:`crop_sim_ros.weather.generator.climate_parameters`). A generated season's
+climate is read from its source; a real season's (held-out Benton, Maricopa) is its site's generator, as its
+scenario names it (``weather.climate``; for Maricopa's three real seasons, a generator whose fit includes those
+years: that set's outlook is not independent of it; the 50 generated Maricopa seasons are). The water-budget
+rule's ``outlook_pace`` (:mod:`crop_agent_ros.policies.family`) reads the same normals (:func:`normal_share_today`).
 """
 
 from __future__ import annotations
@@ -46,8 +47,8 @@ _DAYS_LEFT = EXTENDED.index("season_days_left")
 
 @functools.lru_cache(maxsize=None)
 def normal_et0_mm(climate: str) -> np.ndarray:
-    """(365,) mean daily ET0 (mm) by day of the year (0 = January 1) of ``climate`` (``<generator>``, warmed and
-    dried as in ``benton+4C+8DPD``); ValueError naming the fitted generators for an unknown one."""
+    """(365,) mean daily ET0 (mm) by day of the year (0 = January 1) of ``climate`` (``<generator>``, warmed, dried
+    and its rain scaled as in ``benton+6C+8DPDx0.3R``); ValueError naming the fitted generators for an unknown one."""
     from crop_sim_ros.weather.generator import WeatherError, climate_parameters, generate_seasons
     try:
         params = climate_parameters(climate)
@@ -77,7 +78,7 @@ def season_climate(source: str, fallback: str | None, season: str) -> str:
 
 
 def scenario_climate(scenario) -> str:
-    """The climate of a generated-weather scenario (its generator, warmed and dried as it says)."""
+    """The climate of a generated-weather scenario (its generator, delta-changed as it says)."""
     return scenario.weather.generated_climate
 
 

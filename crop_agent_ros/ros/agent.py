@@ -44,9 +44,10 @@ PARAMETERS = {
     "task": ("", _descriptor(S, "policy budget-rule: the family task whose tuned rule to use, e.g. benton-quota ('' "
                                 "= the simulator's scenario parameter, read at start)")),
     "climate": ("", _descriptor(S, "policy agent with a climate outlook: the field's climate (a fitted weather "
-                                   "generator: benton, gainesville, maricopa; warmed and dried as benton+4C+8DPD) for seasons no "
-                                   "generator made ('' = drive: the season's generator, or for real weather the "
-                                   "site's climate its scenario names); reacting, for every season")),
+                                   "generator: benton, gainesville, maricopa; delta-changed as benton+4C or "
+                                   "benton+6C+8DPDx0.3R) for seasons no generator made ('' = drive: the season's "
+                                   "generator, or for real weather the site's climate its scenario names); reacting, "
+                                   "for every season")),
     "sowing_date": ("", _descriptor(S, "policy agent with a climate outlook, reacting: the field's sowing date, "
                                        "YYYY-MM-DD (drive: each reset's)")),
     "constant_mm": (10.0, _descriptor(D, "policy constant: irrigation per day, mm", 0.0, 100.0)),

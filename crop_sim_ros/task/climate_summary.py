@@ -64,7 +64,8 @@ def markdown_row(row: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m crop_sim_ros.task.climate_summary", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m crop_sim_ros.task.climate_summary",
+                                     description=__doc__.split("\n")[0])
     parser.add_argument("scenarios", nargs="+", metavar="NAME", help="scenario names (crop-sim scenarios lists them)")
     parser.add_argument("--seasons", type=int, default=200, help="the first SEASONS seasons of each (default 200)")
     parser.add_argument("--data-dir", default=None, help="reference data directory (real seasons' files)")

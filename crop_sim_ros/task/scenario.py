@@ -206,9 +206,10 @@ class WeatherSource:
                              "source's climate is its generator's")
         if self.climate and self.climate not in GENERATOR_PARAMETERS:
             raise ValueError(f"weather.climate: {self.climate!r} is not one of {', '.join(GENERATOR_PARAMETERS)}")
-        if self.kind != "generator" and (self.warming_degc, self.drying_degc, self.rain_factor) != (0.0, 0.0, 1.0):
-            raise ValueError(f"weather.warming_degc, drying_degc, rain_factor: only a 'generator' source can be warmed, "
-                             f"dried or its rain scaled, not {self.kind!r}")
+        changed = (self.warming_degc, self.drying_degc, self.rain_factor) != (0.0, 0.0, 1.0)
+        if self.kind != "generator" and changed:
+            raise ValueError("weather.warming_degc, drying_degc, rain_factor: only a 'generator' source can be "
+                             f"warmed, dried or its rain scaled, not {self.kind!r}")
 
     @property
     def generated_climate(self) -> str:
