@@ -232,7 +232,7 @@ def test_climates4_holds_climates3s_seasons_first_and_a_warmed_early_benton_part
     values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
               "weather": {"kind": "seasons", "warming_degc": 1.0,
                           "seasons": [{"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}}
-    with pytest.raises(ValueError, match="weather.warming_degc, drying_degc, rain_factor: only a 'generator' source can be warmed"):
+    with pytest.raises(ValueError, match="weather.warming_degc, drying_degc, rain_factor, spread: only a 'generator' source can be warmed"):
         scenario_from_dict(values)
     with pytest.raises(ValueError, match="weather.warming_degc"):
         scenario_from_dict({**values, "sowing_date": "2000-04-01",
@@ -258,22 +258,22 @@ def test_climates6_holds_climates4s_seasons_first_and_two_warmed_parts_that_deve
 
 
 def _grown_task_tables(smaller: str, larger: str, added_parts: list[str], added_sources: list[str],
-                       added_sowing_dates: list[str]):
+                       added_sowing_dates: list[str], part_seasons: int = 1000):
     """Check that task ``larger`` is ``smaller`` (same terms, same seasons at the same pool positions) plus one
-    1000-season part per ``added_parts`` name, each sown on its date with a source starting as given; return
-    both tasks' season tables."""
+    ``part_seasons``-season part per ``added_parts`` name, whose first season is sown on its date with a source
+    starting as given; return both tasks' season tables."""
     from crop_sim_ros.task.scenario import climates
     small, large = get_scenario(smaller), get_scenario(larger)
     n = small.n_seasons
-    assert large.n_seasons == n + 1000 * len(added_parts)
+    assert large.n_seasons == n + part_seasons * len(added_parts)
     assert large.economics == small.economics and large.limits == small.limits
     assert list(climates(large)) == list(climates(small)) + added_parts
     table_small, table_large = core.scenario_table(small), core.scenario_table(large)
     for k in (0, n // 2, n - 1):
         np.testing.assert_array_equal(table_large.weather[k], table_small.weather[k])
     for i, (source, sown) in enumerate(zip(added_sources, added_sowing_dates)):
-        assert str(table_large.sowing_dates[n + 1000 * i]) == sown
-        assert table_large.sources[n + 1000 * i].startswith(f"generator({source}")
+        assert str(table_large.sowing_dates[n + part_seasons * i]) == sown
+        assert table_large.sources[n + part_seasons * i].startswith(f"generator({source}")
     return table_small, table_large
 
 
@@ -313,9 +313,43 @@ def test_climates12_holds_climates10s_seasons_first_and_its_hot_dry_parts_with_a
               "sowing_date": "2000-04-01"}
     with pytest.raises(ValueError, match="weather.rain_factor"):
         scenario_from_dict({**values, "weather": {"kind": "generator", "generator": "benton", "rain_factor": -1}})
-    with pytest.raises(ValueError, match="only a 'generator' source can be warmed, dried or its rain scaled"):
+    with pytest.raises(ValueError, match="only a 'generator' source can be warmed, dried, its rain scaled"):
         scenario_from_dict({**values, "weather": {"kind": "seasons", "rain_factor": 0.5, "seasons": [
             {"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}})
+
+
+def test_climates_spread_holds_climates12s_seasons_first_and_6000_seasons_each_in_its_own_climate():
+    from crop_agent_ros.policies.outlook import scenario_climate
+    from crop_sim_ros.weather.generator import climate_parameters, generator_of_source
+    first = get_scenario("benton-spread-generated").load_seasons()[0]
+    _, table = _grown_task_tables("climates12-quota", "climates-spread-quota", ["benton-spread"],
+                                  [f"{generator_of_source(first.source)}, seed=10, season=0"], [str(first.start)],
+                                  part_seasons=6000)
+    spread = table.sources[12_000:]
+    climates = {generator_of_source(source) for source in spread}
+    assert len(climates) > 5000  # (nearly) every season its own climate, each one a climate the generator reads back
+    assert all(climate_parameters(c).name == c for c in list(climates)[:50])
+    sown = np.array([np.datetime64(d, "D") for d in table.sowing_dates[12_000:]]) - np.datetime64("2000-03-01")
+    assert sown.astype(int).min() == 0 and sown.astype(int).max() == 61
+    with pytest.raises(ValueError, match="each season draws its own climate"):
+        scenario_climate(get_scenario("benton-spread-generated"))
+    values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
+              "sowing_date": "2000-04-01"}
+    generator = {"kind": "generator", "generator": "benton"}
+    for weather, message in (
+            ({**generator, "warming_degc": 1.0, "spread": {"warming_degc": [0, 2]}}, "weather.spread: each season draws"),
+            ({**generator, "spread": {"warming_degc": [2, 0]}}, r"weather.spread.warming_degc: \[2, 0\] is not a range"),
+            ({**generator, "spread": {"rain_factor": [0.5, 4]}}, "weather.spread.rain_factor: 4 is not"),
+            ({**generator, "spread": {"sowing_delay_days": [0, 1.5]}}, "weather.spread.sowing_delay_days: .* whole"),
+            ({**generator, "spread": {"warming": [0, 1]}}, "weather.spread.warming: not a field"),
+            ({**generator, "spread": {"warming_degc": 3}}, r"weather.spread.warming_degc: expected \[least, most\]"),
+            ({**generator, "spread": [0, 1]}, "weather.spread: expected a mapping"),
+            ({**generator, "generator": "gainesville", "spread": {"drying_degc": [0, 2]}}, "without humidity data"),
+            ({"kind": "seasons", "spread": {"warming_degc": [0, 2]},
+              "seasons": [{"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]},
+             "only a 'generator' source can be warmed, dried, its rain scaled or spread")):
+        with pytest.raises(ValueError, match=message):
+            scenario_from_dict({**values, "weather": weather})
 
 
 def test_real_seasons_name_their_sites_climate_and_only_they_do():

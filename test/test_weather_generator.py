@@ -365,6 +365,41 @@ def test_a_climate_name_gives_its_parameters_and_a_malformed_one_is_refused_by_n
             climate_parameters(bad)
 
 
+def test_a_spread_pool_draws_each_seasons_climate_and_sowing_date_from_its_ranges():
+    from crop_sim_ros.weather.generator import ClimateSpread, climate_parameters, generate_spread_seasons, generator_of_source
+    spread = ClimateSpread(warming_degc=(0, 8), drying_degc=(0, 10), rain_factor=(0.2, 1.0), sowing_delay_days=(0, 30))
+    seasons = generate_spread_seasons("benton", spread, SEASON_START, SEASON_DAYS, 300, seed=5)
+    climates = [generator_of_source(s.source) for s in seasons]
+    assert seasons[7].source == f"generator({climates[7]}, seed=5, season=7)"
+    params = [climate_parameters(c) for c in climates]  # each a climate the generator reads back by its name
+    base = benton_parameters()
+    warming = np.array([p.tmax_mean_dry_degc[0] - base.tmax_mean_dry_degc[0] for p in params])
+    drying = np.array([p.dew_point_depression_mean_degc[0] - base.dew_point_depression_mean_degc[0] for p in params])
+    rain = np.array([p.wet_day_threshold_mm / base.wet_day_threshold_mm for p in params])
+    delay = np.array([(s.start - SEASON_START).days for s in seasons])
+    for values, (least, most) in ((warming, (0, 8)), (drying, (0, 10)), (rain, (0.2, 1.0)), (delay, (0, 30))):
+        assert least - 1e-9 <= values.min() < least + 0.1 * (most - least)  # spread over the whole range
+        assert most - 0.1 * (most - least) < values.max() <= most + 1e-9
+    # each season's weather is its climate's: a warmer draw is warmer, a drier one has lower vapour pressure
+    tmax = np.array([s.tmax_degc.mean() for s in seasons])
+    vap = np.array([s.vap_hpa.mean() for s in seasons])
+    assert np.corrcoef(warming, tmax)[0, 1] > 0.5 and np.corrcoef(drying, vap)[0, 1] < -0.5
+    same = generate_spread_seasons("benton", spread, SEASON_START, SEASON_DAYS, 300, seed=5)
+    assert [s.source for s in same] == [s.source for s in seasons]
+    np.testing.assert_array_equal(same[299].rain_mm, seasons[299].rain_mm)
+    other = generate_spread_seasons("benton", spread, SEASON_START, SEASON_DAYS, 300, seed=6)
+    assert other[0].source != seasons[0].source
+    assert spread.describe() == "+0-8 degC, dew-point depression +0-10 degC, rain x 0.2-1, sown 0-30 days later"
+    fixed = ClimateSpread(warming_degc=(2, 2))
+    assert {generator_of_source(s.source) for s in generate_spread_seasons("benton", fixed, SEASON_START, 10, 5, 1)} == {
+        "benton+2C"}
+    for bad, message in (({"warming_degc": (3, 1)}, "not a range"), ({"drying_degc": (0, 11)}, "drying_degc: 11"),
+                         ({"rain_factor": (-1, 1)}, "rain_factor: -1"), ({"sowing_delay_days": (0, 2.5)}, "whole"),
+                         ({"warming_degc": 3}, "expected \\[least, most\\]")):
+        with pytest.raises(WeatherError, match=message):
+            ClimateSpread(**bad)
+
+
 def test_weather_layer_imports_no_ros_gym_or_torch():
     code = ("import sys, crop_sim_ros.weather.generator, crop_sim_ros.weather.fit, crop_sim_ros.weather.csv_readers\n"
             "print(sorted(m for m in ('rclpy', 'gymnasium', 'torch') if m in sys.modules))")

@@ -194,6 +194,8 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
             sown += f", dew-point depression {source.weather.drying_degc:+g} degC"
         if source.weather.rain_factor != 1.0:
             sown += f", rain x {source.weather.rain_factor:g}"
+        if source.weather.spread is not None:
+            sown += f", each season its own climate: {source.weather.spread.describe()}"
         far = replace(reseeded(source, far_seed, far_seasons), name=f"{name}-generated-seed{far_seed}")
         (sets if name == generator else other_dates).append(EvaluationSet(
             f"far-{name}", f"far generated seeds ({generator} generator{sown}, seed {far_seed})",

@@ -23,6 +23,7 @@ SimpleIrrigation-Climates6-v0           climates6-quota       family: + Benton A
 SimpleIrrigation-Climates8-v0           climates8-quota       family: + Benton sown May 1, and +4 degC
 SimpleIrrigation-Climates10-v0          climates10-quota      family: + Benton +6 degC in drier air
 SimpleIrrigation-Climates12-v0          climates12-quota      family: + the same with 0.3 x the rain
+SimpleIrrigation-ClimatesSpread-v0      climates-spread-quota family: + Benton, each season its own climate
 ======================================= ===================== ===========================================
 
 The family tasks (money, quota, capacity, sensing, climates) are documented in :mod:`crop_sim_ros.task.layout`
@@ -57,6 +58,7 @@ ENV_IDS = {
     "SimpleIrrigation-Climates8-v0": "climates8-quota",
     "SimpleIrrigation-Climates10-v0": "climates10-quota",
     "SimpleIrrigation-Climates12-v0": "climates12-quota",
+    "SimpleIrrigation-ClimatesSpread-v0": "climates-spread-quota",
 }
 
 for _env_id, _scenario in ENV_IDS.items():

@@ -13,7 +13,10 @@ Weather sources (``weather.kind``):
   raises the generator's mean TMAX and TMIN by that much (a delta-change climate scenario,
   ``crop_sim_ros.weather.generator.warmed``); ``drying_degc`` (likewise) raises its mean dew-point depression
   (TMIN - dew point: drier air, ``dried``; only for a generator fitted with humidity data); ``rain_factor``
-  (default 1, in [0, 3]) multiplies every wet day's rain (``rain_scaled``). Needs no file.
+  (default 1, in [0, 3]) multiplies every wet day's rain (``rain_scaled``). ``spread`` (instead of those three)
+  gives ranges from which every season draws its own warming, drying, rain factor and sowing delay after
+  ``sowing_date``, uniformly (``ClimateSpread``: ``spread: {warming_degc: [0, 8], sowing_delay_days: [0, 61]}``;
+  domain randomisation across climates). Needs no file.
 - ``file``: one weather file (``path``, ``format``), the season starting on ``sowing_date``.
 - ``seasons``: several (file, format, sowing date) seasons; ``reset`` picks one (or the one asked for).
   A ``file`` or ``seasons`` source may name its site's ``climate``: the fitted generator of that site (what a
@@ -70,10 +73,10 @@ import yaml
 
 from ..model import FieldParameters, Management, UnknownNameError, crop_library, field_parameters
 from ..model.et0 import ET0_METHODS
-from ..weather import GENERATOR_NAMES, Site, WeatherSeries, read_agweathernet_csv, read_dssat_wth
+from ..weather import GENERATOR_NAMES, Site, WeatherError, WeatherSeries, read_agweathernet_csv, read_dssat_wth
 from ..weather.csv_readers import read_plain_csv
-from ..weather.generator import (MAX_DELTA_DEGC, MAX_RAIN_FACTOR, MIN_RAIN_FACTOR, climate_name, climate_parameters,
-                                 generate_seasons)
+from ..weather.generator import (MAX_DELTA_DEGC, MAX_RAIN_FACTOR, MIN_RAIN_FACTOR, ClimateSpread, climate_name,
+                                 climate_parameters, generate_seasons, generate_spread_seasons)
 from .layout import EXTENDED, PAPER, ObservationLayout
 from .terms import Economics, FarmLimits, check_number as _check_number
 
@@ -176,6 +179,7 @@ class WeatherSource:
     drying_degc: float = 0.0
     rain_factor: float = 1.0
     climate: str = ""  # real seasons: their site's fitted generator ('' none; a generated source's is its own)
+    spread: ClimateSpread | None = None  # a generator source whose every season draws its own climate and sowing date
 
     def __post_init__(self) -> None:
         if self.kind not in WEATHER_KINDS:
@@ -191,6 +195,14 @@ class WeatherSource:
                                                                   MIN_RAIN_FACTOR, MAX_RAIN_FACTOR))
             if self.drying_degc:  # refused here, by name, for a generator fitted without humidity data
                 climate_parameters(self.generated_climate)
+            if self.spread is not None:
+                if not isinstance(self.spread, ClimateSpread):
+                    raise ValueError(f"weather.spread: expected a ClimateSpread, got {self.spread!r}")
+                if (self.warming_degc, self.drying_degc, self.rain_factor) != (0.0, 0.0, 1.0):
+                    raise ValueError("weather.spread: each season draws its warming, drying and rain factor from the "
+                                     "spread's ranges; give those, not weather.warming_degc, drying_degc, rain_factor")
+                if self.spread.drying_degc != (0.0, 0.0):  # refused by name, as above
+                    climate_parameters(climate_name(self.generator, drying_degc=max(self.spread.drying_degc, key=abs)))
             _check_count("weather.n_seasons", self.n_seasons, MAX_GENERATED_SEASONS)
             if int(self.seed) != self.seed or self.seed < 0:
                 raise ValueError(f"weather.seed: {self.seed!r} is not a non-negative integer")
@@ -207,14 +219,18 @@ class WeatherSource:
         if self.climate and self.climate not in GENERATOR_PARAMETERS:
             raise ValueError(f"weather.climate: {self.climate!r} is not one of {', '.join(GENERATOR_PARAMETERS)}")
         changed = (self.warming_degc, self.drying_degc, self.rain_factor) != (0.0, 0.0, 1.0)
-        if self.kind != "generator" and changed:
-            raise ValueError("weather.warming_degc, drying_degc, rain_factor: only a 'generator' source can be "
-                             f"warmed, dried or its rain scaled, not {self.kind!r}")
+        if self.kind != "generator" and (changed or self.spread is not None):
+            raise ValueError("weather.warming_degc, drying_degc, rain_factor, spread: only a 'generator' source can "
+                             f"be warmed, dried, its rain scaled or spread, not {self.kind!r}")
 
     @property
     def generated_climate(self) -> str:
         """A generator source's climate: its generator, warmed, dried and its rain scaled as it says
-        (``benton+6C+8DPDx0.3R``), the name its seasons' source carries."""
+        (``benton+6C+8DPDx0.3R``), the name its seasons' source carries. ValueError for a spread source, whose
+        every season has its own (its source names it)."""
+        if self.spread is not None:
+            raise ValueError(f"generator {self.generator!r} with a spread: each season draws its own climate (its "
+                             "source names it); the source has no one climate")
         return climate_name(self.generator, self.warming_degc, self.drying_degc, self.rain_factor)
 
 
@@ -325,6 +341,10 @@ class Scenario:
 
     def load_seasons(self) -> list[WeatherSeries]:
         """Every season of the scenario, prepared for the task (see :meth:`prepare`)."""
+        if self.weather.kind == "generator" and self.weather.spread is not None:
+            raw = generate_spread_seasons(self.weather.generator, self.weather.spread, self.sowing_date,
+                                          self.max_season_days, self.weather.n_seasons, self.weather.seed)
+            return [self.prepare(series) for series in raw]
         if self.weather.kind == "generator":
             raw = generate_seasons(climate_parameters(self.weather.generated_climate), self.sowing_date,
                                    self.max_season_days, self.weather.n_seasons, self.weather.seed)
@@ -432,6 +452,11 @@ def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scen
             raise ValueError(f"weather.seasons[{i}].path: missing")
         seasons.append(SeasonFile(str(entry["path"]), str(entry.get("format")),
                                   _as_date(f"weather.seasons[{i}].sowing_date", entry.get("sowing_date"))))
+    if weather.get("spread") is not None:
+        try:
+            weather["spread"] = ClimateSpread.from_dict(weather["spread"])
+        except WeatherError as error:  # it names the spread's field: say where the spread is
+            raise ValueError(f"weather.{error}") from None
     if kind == "mixture":
         names = weather.get("mixture")
         weather["mixture"] = tuple(names) if isinstance(names, list) else names

@@ -32,10 +32,11 @@ rclpy, gymnasium nor torch.
 
 from __future__ import annotations
 
+import functools
 import json
 import re
 from dataclasses import asdict, dataclass, field, fields, replace
-from datetime import date
+from datetime import date, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -220,6 +221,7 @@ class GeneratorParameters:
                      if getattr(self, pair[0]) is None)
 
 
+@functools.lru_cache(maxsize=None)  # frozen parameters, read once per process (a spread pool names thousands of climates)
 def generator_parameters(name: str) -> GeneratorParameters:
     """The packaged parameter set ``name`` (one of :data:`GENERATOR_NAMES`); WeatherError lists the known
     names for an unknown one."""
@@ -401,6 +403,15 @@ def _generate_arrays(params: GeneratorParameters, dates: np.ndarray, n_seasons: 
             "vap_hpa": vap_hpa, "wind_m_s": wind_m_s}
 
 
+def _season_series(params: GeneratorParameters, dates: np.ndarray, arrays: dict[str, np.ndarray], k: int,
+                   source: str) -> WeatherSeries:
+    """Season ``k`` (a column) of :func:`_generate_arrays`' ``arrays`` as a series from ``source``, the variables
+    the parameters have no data for filled by FAO-56's rules."""
+    one = make_series(params.site, dates, source=source,
+                      **{name: np.ascontiguousarray(values[:, k]) for name, values in arrays.items()})
+    return one.with_fao56_fills() if params.fao56_filled else one
+
+
 def generate_seasons(params: GeneratorParameters, start: date, days: int, n_seasons: int,
                      seed: int | np.random.Generator) -> list[WeatherSeries]:
     """``n_seasons`` independent seasons of ``days`` days from ``start``, drawn at once.
@@ -414,13 +425,108 @@ def generate_seasons(params: GeneratorParameters, start: date, days: int, n_seas
     dates = np.datetime64(start, "D") + np.arange(days)
     arrays = _generate_arrays(params, dates, n_seasons, np.random.default_rng(seed))
     seed_text = seed if isinstance(seed, (int, np.integer)) else "rng"
-    by_season = {name: np.ascontiguousarray(values.T) for name, values in arrays.items()}
+    return [_season_series(params, dates, arrays, k, f"generator({params.name}, seed={seed_text}"
+                                                     f"{'' if n_seasons == 1 else f', season={k}'})")
+            for k in range(n_seasons)]
+
+
+def _range(name: str, values, low: float, high: float, whole: bool = False) -> tuple[float, float]:
+    """``values`` as a (least, most) pair within [low, high] (whole numbers if ``whole``), else WeatherError
+    naming ``name``."""
+    if not isinstance(values, (tuple, list)) or len(values) != 2:
+        raise WeatherError(f"{name}: expected [least, most], got {values!r}")
+    least, most = (_bounded_number(name, v, low, high) for v in values)
+    if least > most or (whole and (least != int(least) or most != int(most))):
+        raise WeatherError(f"{name}: {list(values)!r} is not a range [least, most]"
+                           f"{' of whole numbers' if whole else ''}")
+    return least, most
+
+
+# Most days a spread pool may delay a season's sowing past its scenario's sowing date (a year).
+MAX_SOWING_DELAY_DAYS = 365
+
+
+@dataclass(frozen=True)
+class ClimateSpread:
+    """Ranges from which every season of a pool draws its own climate and sowing date, each uniformly and
+    independently (domain randomisation across climates, where a mixture's parts are a few fixed points):
+
+    ===================== ======= ==========================================================================
+    field                 unit    what each season draws (a range [least, most]; least == most fixes it)
+    ===================== ======= ==========================================================================
+    warming_degc          degC    its :func:`warmed` delta-change, rounded to 0.1 degC
+    drying_degc           degC    its :func:`dried` delta-change, rounded to 0.1 degC
+    rain_factor           1       its :func:`rain_scaled` factor, rounded to 0.01
+    sowing_delay_days     d       whole days after the scenario's sowing date that it is sown
+    ===================== ======= ==========================================================================
+
+    The rounding keeps each season's climate a short name (``benton+3.7C+5.2DPDx0.46R``) that
+    :func:`climate_parameters` reads back, so a season's source names its own climate."""
+
+    warming_degc: tuple[float, float] = (0.0, 0.0)
+    drying_degc: tuple[float, float] = (0.0, 0.0)
+    rain_factor: tuple[float, float] = (1.0, 1.0)
+    sowing_delay_days: tuple[int, int] = (0, 0)
+
+    def __post_init__(self) -> None:
+        for name, low, high, whole in (("warming_degc", -MAX_DELTA_DEGC, MAX_DELTA_DEGC, False),
+                                       ("drying_degc", -MAX_DELTA_DEGC, MAX_DELTA_DEGC, False),
+                                       ("rain_factor", MIN_RAIN_FACTOR, MAX_RAIN_FACTOR, False),
+                                       ("sowing_delay_days", 0, MAX_SOWING_DELAY_DAYS, True)):
+            least, most = _range(f"spread.{name}", getattr(self, name), low, high, whole)
+            object.__setattr__(self, name, (int(least), int(most)) if whole else (least, most))
+
+    @classmethod
+    def from_dict(cls, values: dict) -> "ClimateSpread":
+        """From a mapping of the fields (a scenario's ``weather.spread``); WeatherError names an unknown field."""
+        if not isinstance(values, dict):
+            raise WeatherError(f"spread: expected a mapping of ranges, got {values!r}")
+        unknown = set(values) - {f.name for f in fields(cls)}
+        if unknown:
+            raise WeatherError(f"spread.{sorted(unknown)[0]}: not a field (fields: "
+                               f"{', '.join(f.name for f in fields(cls))})")
+        return cls(**{name: tuple(v) if isinstance(v, list) else v for name, v in values.items()})
+
+    def describe(self) -> str:
+        """The ranges in words (``+0-8 degC, dew-point depression +0-10 degC, rain x 0.2-1, sown 0-61 days
+        later``), the fixed ones left out."""
+        words = [f"{prefix}{least:+g}{'' if least == most else f'-{most:g}'}{unit}"
+                 for prefix, (least, most), unit, fixed in (("", self.warming_degc, " degC", 0.0),
+                                                           ("dew-point depression ", self.drying_degc, " degC", 0.0))
+                 if (least, most) != (fixed, fixed)]
+        if self.rain_factor != (1.0, 1.0):
+            least, most = self.rain_factor
+            words.append(f"rain x {least:g}{'' if least == most else f'-{most:g}'}")
+        if self.sowing_delay_days != (0, 0):
+            least, most = self.sowing_delay_days
+            words.append(f"sown {least}{'' if least == most else f'-{most}'} days later")
+        return ", ".join(words)
+
+    def draw(self, generator: str, n_seasons: int, rng: np.random.Generator) -> list[tuple[str, int]]:
+        """(climate name, sowing delay in days) of each of ``n_seasons`` seasons of ``generator``."""
+        warming = np.round(rng.uniform(*self.warming_degc, n_seasons), 1)
+        drying = np.round(rng.uniform(*self.drying_degc, n_seasons), 1)
+        rain = np.round(rng.uniform(*self.rain_factor, n_seasons), 2)
+        delay = rng.integers(self.sowing_delay_days[0], self.sowing_delay_days[1] + 1, n_seasons)
+        # + 0.0 turns a rounded -0.0 into 0.0, which the name omits
+        return [(climate_name(generator, w + 0.0, d + 0.0, r), int(days))
+                for w, d, r, days in zip(warming, drying, rain, delay)]
+
+
+def generate_spread_seasons(generator: str, spread: ClimateSpread, start: date, days: int, n_seasons: int,
+                            seed: int) -> list[WeatherSeries]:
+    """``n_seasons`` seasons of ``days`` days, each from its own climate and sowing date drawn from ``spread``
+    (the climate ``generator`` delta-changed; sown ``start`` + its delay). The same seed gives the same seasons.
+    Each series' source reads ``generator(<its climate>, seed=<seed>, season=<k>)``."""
+    if days < 1 or n_seasons < 1:
+        raise WeatherError(f"generator({generator}): days ({days}) and n_seasons ({n_seasons}) must be >= 1")
+    rng = np.random.default_rng(seed)
     series = []
-    for k in range(n_seasons):
-        season = "" if n_seasons == 1 else f", season={k}"
-        one = make_series(params.site, dates, source=f"generator({params.name}, seed={seed_text}{season})",
-                          **{name: values[k] for name, values in by_season.items()})
-        series.append(one.with_fao56_fills() if params.fao56_filled else one)
+    for k, (climate, delay) in enumerate(spread.draw(generator, n_seasons, rng)):
+        params = climate_parameters(climate)
+        dates = np.datetime64(start + timedelta(days=delay), "D") + np.arange(days)
+        series.append(_season_series(params, dates, _generate_arrays(params, dates, 1, rng), 0,
+                                     f"generator({climate}, seed={seed}, season={k})"))
     return series
 
 
