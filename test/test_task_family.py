@@ -337,8 +337,10 @@ def test_climates_spread_holds_climates12s_seasons_first_and_6000_seasons_each_i
               "sowing_date": "2000-04-01"}
     generator = {"kind": "generator", "generator": "benton"}
     for weather, message in (
-            ({**generator, "warming_degc": 1.0, "spread": {"warming_degc": [0, 2]}}, "weather.spread: each season draws"),
-            ({**generator, "spread": {"warming_degc": [2, 0]}}, r"weather.spread.warming_degc: \[2, 0\] is not a range"),
+            ({**generator, "warming_degc": 1.0, "spread": {"warming_degc": [0, 2]}},
+             "weather.spread: each season draws"),
+            ({**generator, "spread": {"warming_degc": [2, 0]}},
+             r"weather.spread.warming_degc: \[2, 0\] is not a range"),
             ({**generator, "spread": {"rain_factor": [0.5, 4]}}, "weather.spread.rain_factor: 4 is not"),
             ({**generator, "spread": {"sowing_delay_days": [0, 1.5]}}, "weather.spread.sowing_delay_days: .* whole"),
             ({**generator, "spread": {"warming": [0, 1]}}, "weather.spread.warming: not a field"),

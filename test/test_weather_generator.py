@@ -366,7 +366,8 @@ def test_a_climate_name_gives_its_parameters_and_a_malformed_one_is_refused_by_n
 
 
 def test_a_spread_pool_draws_each_seasons_climate_and_sowing_date_from_its_ranges():
-    from crop_sim_ros.weather.generator import ClimateSpread, climate_parameters, generate_spread_seasons, generator_of_source
+    from crop_sim_ros.weather.generator import (ClimateSpread, climate_parameters, generate_spread_seasons,
+                                                generator_of_source)
     spread = ClimateSpread(warming_degc=(0, 8), drying_degc=(0, 10), rain_factor=(0.2, 1.0), sowing_delay_days=(0, 30))
     seasons = generate_spread_seasons("benton", spread, SEASON_START, SEASON_DAYS, 300, seed=5)
     climates = [generator_of_source(s.source) for s in seasons]

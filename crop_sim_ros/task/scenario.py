@@ -29,9 +29,8 @@ A scenario file may derive from another (``base: NAME``, a built-in name or a YA
 the base's fields and replaces those it names (``noise``, ``economics`` and ``limits`` field by field). The
 task family's scenarios (``benton-money``, ``benton-quota``, ``benton-capacity``, ``benton-sensing``,
 ``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``,
-``climates8-quota``, ``climates10-quota``, ``climates12-quota``, ``benton-early-quota``, ``benton-early-pivot``,
-``benton-early-warm-quota``, ``maricopa-late-quota``) derive from
-``benton-generated`` this way; their terms are documented in :mod:`crop_sim_ros.task.terms`.
+``climates8-quota``, ``climates10-quota``, ``climates12-quota``, ``climates-spread-quota``, ``benton-early-quota``,
+``benton-early-pivot``, ``benton-early-warm-quota``, ``maricopa-late-quota``) derive from ``benton-generated`` this way; their terms are documented in :mod:`crop_sim_ros.task.terms`.
 
 File formats: ``agweathernet`` (AgWeatherNet daily CSV), ``dssat`` (DSSAT .WTH), ``csv`` (the plain daily CSV of
 ``crop_sim_ros.weather.csv_readers.read_plain_csv``).
@@ -53,7 +52,8 @@ planting seasons), ``gainesville-real`` and ``maricopa-real`` (their distinct re
 dates); ``benton-early-generated`` (Benton County sown March 1, the early end of its planting window);
 ``maricopa-late-generated`` and ``maricopa-late-real`` (Maricopa sown February 28, the late end of its window);
 ``benton-late-generated`` (Benton sown May 1); ``benton-early-warm-generated``, ``benton-warm-generated``,
-``benton-late-warm-generated`` and ``gainesville-warm-generated`` (4 degC warmer, delta-change). Every
+``benton-late-warm-generated`` and ``gainesville-warm-generated`` (4 degC warmer, delta-change);
+``benton-spread-generated`` (every season its own delta-changed Benton climate and sowing date). Every
 built-in scenario grows Russet Burbank potato on the Benton County soil at 369 ppm CO2 (the 2000 global mean;
 the held-out seasons keep it so that only the weather differs from training).
 """

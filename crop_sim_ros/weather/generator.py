@@ -221,7 +221,8 @@ class GeneratorParameters:
                      if getattr(self, pair[0]) is None)
 
 
-@functools.lru_cache(maxsize=None)  # frozen parameters, read once per process (a spread pool names thousands of climates)
+# Frozen parameters, read once per process: a spread pool derives thousands of climates from one fitted set.
+@functools.lru_cache(maxsize=None)
 def generator_parameters(name: str) -> GeneratorParameters:
     """The packaged parameter set ``name`` (one of :data:`GENERATOR_NAMES`); WeatherError lists the known
     names for an unknown one."""
