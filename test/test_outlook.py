@@ -3,6 +3,7 @@ climates of a pool's seasons, and an agent that reads it in training, from a fil
 
 from __future__ import annotations
 
+import datetime
 import json
 
 import numpy as np
@@ -21,7 +22,7 @@ DAY, QUOTA = EXTENDED.index("days_since_sowing"), EXTENDED.index("quota_remainin
 def test_normals_are_the_generators_mean_year_and_a_warmed_climate_has_its_own():
     benton, maricopa = outlook.normal_et0_mm("benton"), outlook.normal_et0_mm("maricopa")
     assert benton.shape == maricopa.shape == (365,) and np.all(benton > 0)
-    np.testing.assert_array_equal(outlook.normal_et0_mm.__wrapped__("benton"), benton)  # seeded: the same year
+    np.testing.assert_array_equal(outlook._normal_et0_mm.__wrapped__("benton"), benton)  # seeded: the same year
     assert benton[170:200].mean() > 2.0 * benton[:30].mean()  # a Washington summer against its winter
     assert maricopa[150:180].mean() > benton[150:180].mean()  # the desert in June
     assert np.all(outlook.normal_et0_mm("benton+4C")[120:240] > benton[120:240])
@@ -160,3 +161,21 @@ def test_the_tuner_searches_the_climatological_budget_only_when_asked():
     asked = family_tuning.tune_rule(task, seasons, candidates=6, rounds=0, names=names, log=lambda *_: None)
     assert "outlook_pace" in asked["parameters"]
     assert family_tuning.rule_file("x", outlook=True).name == "family_x-outlook.json"
+
+
+def test_a_rain_factor_leaves_a_climates_normals_and_a_spread_pool_reads_each_seasons_own():
+    from crop_sim_ros.weather.generator import climate_parameters, generate_seasons
+    years = generate_seasons(climate_parameters("benton+6C+8DPDx0.3R"), datetime.date(2001, 1, 1), 730,
+                             outlook.NORMAL_YEARS, outlook.NORMALS_SEED)
+    et0 = np.stack([y.et0_mm("penman_monteith") for y in years])
+    direct = et0.reshape(outlook.NORMAL_YEARS, 2, 365).mean(axis=(0, 1))
+    np.testing.assert_array_equal(outlook.normal_et0_mm("benton+6C+8DPDx0.3R"), direct)
+    assert outlook.normal_et0_mm("benton+6C+8DPDx0.3R") is outlook.normal_et0_mm("benton+6C+8DPD")
+    assert outlook.normal_et0_mm("benton+6C+8DPD").mean() > outlook.normal_et0_mm("benton").mean() + 0.5
+    pool = outlook.pool_climates(get_scenario("climates-spread-quota"))
+    assert len(pool) == 18_000 and pool[0] == ("benton", 91)
+    spread = pool[12_000:]
+    contexts = season_contexts(get_scenario("benton-spread-generated"))
+    assert spread[17] == (outlook.climate_of_source(contexts[17].extra["source"]),
+                          outlook.day_of_year(contexts[17].extra["sowing_date"]))
+    assert len({climate for climate, _ in spread}) > 5000 and {day for _, day in spread} == set(range(60, 122))

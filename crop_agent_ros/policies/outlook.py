@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import datetime
 import functools
+import re
 
 import numpy as np
 
@@ -45,16 +46,25 @@ _QUOTA = EXTENDED.index("quota_remaining_mm")
 _DAYS_LEFT = EXTENDED.index("season_days_left")
 
 
-@functools.lru_cache(maxsize=None)
 def normal_et0_mm(climate: str) -> np.ndarray:
     """(365,) mean daily ET0 (mm) by day of the year (0 = January 1) of ``climate`` (``<generator>``, warmed, dried
-    and its rain scaled as in ``benton+6C+8DPDx0.3R``); ValueError naming the fitted generators for an unknown one."""
-    from crop_sim_ros.weather.generator import WeatherError, climate_parameters, generate_seasons
+    and its rain scaled as in ``benton+6C+8DPDx0.3R``); ValueError naming the fitted generators for an unknown one.
+    A rain factor leaves them as they are (the same wet days, so the same temperatures, radiation, humidity and
+    wind), so a climate's normals are computed once for every rain factor: a spread pool names thousands of
+    climates."""
+    from crop_sim_ros.weather.generator import WeatherError, climate_parameters
     try:
         params = climate_parameters(climate)
     except WeatherError as error:
         raise ValueError(f"climate outlook: {error}") from None
-    years = generate_seasons(params, datetime.date(2001, 1, 1), 730, NORMAL_YEARS, NORMALS_SEED)
+    return _normal_et0_mm(re.sub(r"x[0-9.]+R$", "", params.name))
+
+
+@functools.lru_cache(maxsize=None)
+def _normal_et0_mm(climate: str) -> np.ndarray:
+    """:func:`normal_et0_mm` of a climate without a rain factor."""
+    from crop_sim_ros.weather.generator import climate_parameters, generate_seasons
+    years = generate_seasons(climate_parameters(climate), datetime.date(2001, 1, 1), 730, NORMAL_YEARS, NORMALS_SEED)
     et0 = np.stack([series.et0_mm("penman_monteith") for series in years])
     normals = et0.reshape(NORMAL_YEARS, 2, 365).mean(axis=(0, 1))
     normals.setflags(write=False)
@@ -84,10 +94,18 @@ def scenario_climate(scenario) -> str:
 
 def pool_climates(task) -> list[tuple[str, int]]:
     """(climate, sowing day of year) of every season of ``task``'s training pool, in pool order (each generated
-    part's ``n_seasons`` in turn)."""
+    part's ``n_seasons`` in turn; a spread part's seasons each their own, as their sources name them)."""
+    from crop_sim_ros.task.core import scenario_table
     from crop_sim_ros.task.scenario import generated_parts
-    return [(scenario_climate(part), day_of_year(part.sowing_date))
-            for part in generated_parts(task) for _ in range(part.weather.n_seasons)]
+    pool = []
+    for part in generated_parts(task):
+        if part.weather.spread is None:
+            pool += [(scenario_climate(part), day_of_year(part.sowing_date))] * part.weather.n_seasons
+        else:
+            table = scenario_table(part)
+            pool += [(climate_of_source(source), day_of_year(str(sown)))
+                     for source, sown in zip(table.sources, table.sowing_dates)]
+    return pool
 
 
 def day_of_year(day: datetime.date | str) -> int:
