@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from crop_agent_ros.policies import family_dp, family_expected as fe, family_hindsight as fh, family_mpc as fm
+from crop_agent_ros.learning.evaluate_task import evaluation_sets
 from crop_agent_ros.policies import family_oracle as fo
 from crop_agent_ros.policies.rollout import contexts_with_terms, run_episodes, season_contexts
 from crop_sim_ros import model
@@ -130,24 +131,27 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
     assert fm.main(["--table", str(table), "--set", "heldout-real", "--continuations", "atlantis"]) == 2
     assert "no weather generator 'atlantis' (fitted: benton, gainesville, maricopa)" in capsys.readouterr().err
     task = get_scenario("climates3-quota")
-    assert fm.continuation_source(task, "maricopa-generated")[0] == "maricopa"
-    assert fm.continuation_source(task, "maricopa-generated", "gainesville")[0] == "gainesville"
+    sets = {s.name: s for s in evaluation_sets(task, far_seasons=2)}
+    assert fm.continuation_source(task, sets["maricopa-generated"])[0] == "maricopa"
+    assert fm.continuation_source(task, sets["maricopa-generated"], "gainesville")[0] == "gainesville"
     # a part named apart from its generator: Benton sown March 1, not benton-generated's April
-    name, early = fm.continuation_source(task, "maricopa-generated", "benton-early")
+    name, early = fm.continuation_source(task, sets["maricopa-generated"], "benton-early")
     assert (name, early.name, str(early.sowing_date)) == ("benton-early", "benton-early-generated", "2000-03-01")
-    assert str(fm.continuation_source(task, "maricopa-generated", "benton")[1].sowing_date) == "2000-04-01"
+    assert str(fm.continuation_source(task, sets["maricopa-generated"], "benton")[1].sowing_date) == "2000-04-01"
     with pytest.raises(ValueError, match="no weather generator 'atlantis' .* no climate of the task so named "
                                          r"\(benton-early\)"):
-        fm.continuation_source(task, "maricopa-generated", "atlantis")
-    # the held-out climate sown late draws its continuations from a pool sown on the same date
-    name, late = fm.continuation_source(task, "maricopa-late-real")
-    assert (name, late.name, str(late.sowing_date)) == ("maricopa", "maricopa-late-generated", "2001-02-28")
-    name, blind = fm.continuation_source(task, "maricopa-march15-generated")
-    assert (name, blind.name, str(blind.sowing_date)) == ("maricopa", "maricopa-march15-generated", "2001-03-15")
-    name, early = fm.continuation_source(task, "far-benton-early")
-    assert (name, early.name, str(early.sowing_date)) == ("benton-early", "benton-early-generated", "2000-03-01")
-    with pytest.raises(ValueError, match="climates3-quota has no climate 'nowhere'"):
-        fm.continuation_source(task, "far-nowhere")
+        fm.continuation_source(task, sets["maricopa-generated"], "atlantis")
+    # each set's own: its site's pool sown on its date (the held-out climate sown late: that date's pool)
+    for set_name, expected in (("heldout-real", ("benton", "benton-generated", "2000-04-01")),
+                               ("maricopa-real", ("maricopa", "maricopa-generated", "2001-01-15")),
+                               ("maricopa-late-real", ("maricopa", "maricopa-late-generated", "2001-02-28")),
+                               ("maricopa-march15-generated", ("maricopa", "maricopa-march15-generated", "2001-03-15")),
+                               ("far-benton-early", ("benton-early", "benton-early-generated", "2000-03-01")),
+                               ("far-gainesville", ("gainesville", "gainesville-generated", "2001-02-01"))):
+        name, pool = fm.continuation_source(task, sets[set_name])
+        assert (name, pool.name, str(pool.sowing_date)) == expected, set_name
+    with pytest.raises(ValueError, match="no weather generator known for set 'x'"):
+        fm.continuation_source(task, replace(sets["far-benton"], name="x", continuations=None))
     (tmp_path / "list.json").write_text("[1, 2]")
     assert fm.main(["--table", str(tmp_path / "list.json"), "--set", "heldout-real"]) == 2
     assert "is not a table.json" in capsys.readouterr().err

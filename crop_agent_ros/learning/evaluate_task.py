@@ -159,12 +159,15 @@ def add_arguments(parser) -> None:
 
 @dataclass(frozen=True)
 class EvaluationSet:
-    """One evaluation set: the task's terms on ``scenario``'s weather, seasons ``seasons`` (indices)."""
+    """One evaluation set: the task's terms on ``scenario``'s weather, seasons ``seasons`` (indices).
+    ``continuations``: (climate, generated-weather scenario) whose seasons a planner draws its weather
+    continuations from here (the set's own site and sowing date; None: no planner runs on this set)."""
 
     name: str
     role: str
     scenario: object
     seasons: np.ndarray
+    continuations: tuple[str, object] | None = None
 
     @property
     def site_climate(self) -> str | None:
@@ -182,8 +185,11 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
     held_out_climate = ("held-out climate" if len(generators) > 1
                         else f"transfer test: trained on {generators[0]} weather only")
     heldout = get_scenario("heldout", task.data_dir)
+    def own(real):  # a real set's continuations: its site climate's generated seasons, as that scenario sows them
+        return real.weather.climate, get_scenario(f"{real.weather.climate}-generated", task.data_dir)
+
     sets = [EvaluationSet(HELD_OUT_REAL, "held-out real seasons (Benton 2000, Paterson 1992-1995)",
-                          with_weather_of(task, heldout), np.arange(heldout.n_seasons))]
+                          with_weather_of(task, heldout), np.arange(heldout.n_seasons), own(heldout))]
     other_dates = []  # far sets of a site sown on another date (a part named apart from its generator)
     for name, source in sources.items():
         generator = source.weather.generator
@@ -199,14 +205,14 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
         far = replace(reseeded(source, far_seed, far_seasons), name=f"{name}-generated-seed{far_seed}")
         (sets if name == generator else other_dates).append(EvaluationSet(
             f"far-{name}", f"far generated seeds ({generator} generator{sown}, seed {far_seed})",
-            with_weather_of(task, far), np.arange(far_seasons)))
+            with_weather_of(task, far), np.arange(far_seasons), (name, source)))
     generated, real = (get_scenario(name, task.data_dir) for name in MARICOPA)
     sets.append(EvaluationSet("maricopa-generated",
                               f"{held_out_climate} (Maricopa AZ generator, seed {far_seed})",
                               with_weather_of(task, reseeded(generated, far_seed, far_seasons)),
-                              np.arange(far_seasons)))
+                              np.arange(far_seasons), ("maricopa", generated)))
     sets.append(EvaluationSet("maricopa-real", f"{held_out_climate} (Maricopa AZ, real seasons 2007-2009)",
-                              with_weather_of(task, real), np.arange(real.n_seasons)))
+                              with_weather_of(task, real), np.arange(real.n_seasons), own(real)))
     # Those come last: each set's terms are drawn with a seed from its position, so climates3-quota's other
     # sets keep climates-quota's positions, seasons and terms (their oracle returns are the same).
     sets += other_dates
@@ -219,15 +225,17 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
     sets.append(EvaluationSet("maricopa-late-generated",
                               f"{held_out_climate}, {late} (Maricopa AZ generator, seed {far_seed + 1})",
                               with_weather_of(task, reseeded(late_generated, far_seed + 1, far_seasons)),
-                              np.arange(far_seasons)))
+                              np.arange(far_seasons), ("maricopa", late_generated)))
     sets.append(EvaluationSet("maricopa-late-real", f"{held_out_climate}, {late} (Maricopa AZ, real seasons 2007-2009)",
-                              with_weather_of(task, late_real), np.arange(late_real.n_seasons)))
+                              with_weather_of(task, late_real), np.arange(late_real.n_seasons),
+                              ("maricopa", late_generated)))
     # A blind check of the held-out climate, sown later still: the late sets above were used to diagnose the
     # agents' transfer and to design training climates after it (climates6/8/10-quota); this one chooses nothing.
     blind = get_scenario(MARICOPA_BLIND, task.data_dir)
     sets.append(EvaluationSet(MARICOPA_BLIND, f"{held_out_climate}, sown {blind.sowing_date:%B} {blind.sowing_date.day}, "
                               f"a blind check (Maricopa AZ generator, seed {far_seed + 2})",
-                              with_weather_of(task, reseeded(blind, far_seed + 2, far_seasons)), np.arange(far_seasons)))
+                              with_weather_of(task, reseeded(blind, far_seed + 2, far_seasons)), np.arange(far_seasons),
+                              ("maricopa", blind)))
     return sets
 
 

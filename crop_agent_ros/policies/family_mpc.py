@@ -275,34 +275,23 @@ def fitted_generator(name: str, parts=()) -> str:
     return name
 
 
-def continuation_source(task, set_name: str, asked: str | None = None):
-    """(name, generated-weather scenario) whose climatology the MPC draws continuations from on evaluation set
-    ``set_name`` of ``task``: ``asked`` (one of the fitted generators, its ``<name>-generated`` scenario, or a
-    climate of the task named apart from its generator, e.g. ``benton-early``: Benton sown March 1), else
-    the set's own site and sowing date (a far set's part of the task; the held-out real seasons are Benton
-    County's). Asking for another site's shows what a planner that knows only that climate does here (e.g. a
-    training climate's on the held-out one)."""
+def continuation_source(task, evaluation_set, asked: str | None = None):
+    """(name, generated-weather scenario) whose climatology the MPC draws continuations from on ``evaluation_set``
+    (an :class:`~crop_agent_ros.learning.evaluate_task.EvaluationSet` of ``task``): ``asked`` (one of the fitted
+    generators, its ``<name>-generated`` scenario, or a climate of the task named apart from its generator, e.g.
+    ``benton-early``: Benton sown March 1), else the set's own (its site and sowing date: a far set's part of the
+    task, the held-out real seasons' Benton County, the held-out climate's pool sown on the set's date). Asking
+    for another site's shows what a planner that knows only that climate does here (e.g. a training climate's on
+    the held-out one)."""
     from crop_sim_ros.task.scenario import climates, get_scenario
     if asked is not None:
         parts = climates(task)
         if asked not in GENERATOR_NAMES and asked in parts:
             return asked, parts[asked]  # a part named apart from its generator (benton-early: sown March 1)
         return fitted_generator(asked, parts), get_scenario(f"{asked}-generated", task.data_dir)
-    if set_name.startswith("far-"):
-        parts = climates(task)
-        name = set_name[len("far-"):]
-        if name not in parts:
-            raise ValueError(f"family MPC: {task.name} has no climate {name!r} (climates: {', '.join(parts)})")
-        return name, parts[name]
-    for sown in ("maricopa-late-", "maricopa-march15-"):  # the held-out climate sown later: its own date's pool
-        if set_name.startswith(sown):
-            return "maricopa", get_scenario(f"{sown}generated", task.data_dir)
-    # the held-out real seasons and the held-out climate's sets: the site climate their real scenario names
-    real = "heldout" if set_name == "heldout-real" else "maricopa-real" if set_name.startswith("maricopa-") else None
-    if real is not None:
-        climate = get_scenario(real, task.data_dir).weather.climate
-        return climate, get_scenario(f"{climate}-generated", task.data_dir)
-    raise ValueError(f"family MPC: no weather generator known for set {set_name!r}")
+    if evaluation_set.continuations is None:
+        raise ValueError(f"family MPC: no weather generator known for set {evaluation_set.name!r}")
+    return evaluation_set.continuations
 
 
 def _bootstrap_mean(values: np.ndarray, rng: np.random.Generator, resamples: int) -> np.ndarray:
@@ -329,7 +318,7 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     if index.size == 0 or index.max() >= len(entry["seasons"]):
         raise ValueError(f"--seasons: {set_name} has seasons 0..{len(entry['seasons']) - 1}")
     terms = {name: np.asarray(values, dtype=float)[index] for name, values in entry["terms"].items()}
-    generator, source = continuation_source(task, set_name, continuations)
+    generator, source = continuation_source(task, evaluation_set, continuations)
     pools = continuation_pool(source, settings.scenarios)
     mpc = planner(TaskConstants.of_scenario(evaluation_set.scenario), pools, settings)
     began = time.perf_counter()
@@ -430,7 +419,9 @@ def main(argv=None) -> int:
             seasons = None if args.seasons is None else season_range(args.seasons)
             if args.continuations is not None:  # refused before any planning
                 from crop_sim_ros.task.scenario import get_scenario
-                continuation_source(get_scenario(str(table["task"])), args.set, args.continuations)
+                from crop_agent_ros.learning.evaluate_task import table_set
+                continuation_source(get_scenario(str(table["task"])), table_set(table, args.set)[1],
+                                    args.continuations)
             summary = compare_with_table(table, args.set, seasons, settings, continuations=args.continuations)
     except (OSError, ValueError, KeyError) as error:
         print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
