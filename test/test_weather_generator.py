@@ -390,7 +390,10 @@ def test_a_spread_pool_draws_each_seasons_climate_and_sowing_date_from_its_range
     np.testing.assert_array_equal(same[299].rain_mm, seasons[299].rain_mm)
     other = generate_spread_seasons("benton", spread, SEASON_START, SEASON_DAYS, 300, seed=6)
     assert other[0].source != seasons[0].source
-    assert spread.describe() == "+0-8 degC, dew-point depression +0-10 degC, rain x 0.2-1, sown 0-30 days later"
+    assert spread.describe() == ("+0 to +8 degC, dew-point depression +0 to +10 degC, rain x 0.2 to 1, sown 0 to 30 "
+                                 "days later")
+    assert ClimateSpread(warming_degc=(-2, 2), drying_degc=(1, 1)).describe() == (
+        "-2 to +2 degC, dew-point depression +1 degC")
     fixed = ClimateSpread(warming_degc=(2, 2))
     assert {generator_of_source(s.source) for s in generate_spread_seasons("benton", fixed, SEASON_START, 10, 5, 1)} == {
         "benton+2C"}

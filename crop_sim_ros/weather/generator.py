@@ -489,18 +489,16 @@ class ClimateSpread:
         return cls(**{name: tuple(v) if isinstance(v, list) else v for name, v in values.items()})
 
     def describe(self) -> str:
-        """The ranges in words (``+0-8 degC, dew-point depression +0-10 degC, rain x 0.2-1, sown 0-61 days
-        later``), the fixed ones left out."""
-        words = [f"{prefix}{least:+g}{'' if least == most else f'-{most:g}'}{unit}"
-                 for prefix, (least, most), unit, fixed in (("", self.warming_degc, " degC", 0.0),
-                                                           ("dew-point depression ", self.drying_degc, " degC", 0.0))
-                 if (least, most) != (fixed, fixed)]
+        """The ranges in words (``+0 to +8 degC, dew-point depression +0 to +10 degC, rain x 0.2 to 1, sown 0 to 61
+        days later``), the fixed ones left out."""
+        def span(least, most, form):
+            return format(least, form) + ("" if least == most else " to " + format(most, form))
+        words = [f"{prefix}{span(*values, '+g')} degC" for prefix, values in
+                 (("", self.warming_degc), ("dew-point depression ", self.drying_degc)) if values != (0.0, 0.0)]
         if self.rain_factor != (1.0, 1.0):
-            least, most = self.rain_factor
-            words.append(f"rain x {least:g}{'' if least == most else f'-{most:g}'}")
+            words.append(f"rain x {span(*self.rain_factor, 'g')}")
         if self.sowing_delay_days != (0, 0):
-            least, most = self.sowing_delay_days
-            words.append(f"sown {least}{'' if least == most else f'-{most}'} days later")
+            words.append(f"sown {span(*self.sowing_delay_days, 'd')} days later")
         return ", ".join(words)
 
     def draw(self, generator: str, n_seasons: int, rng: np.random.Generator) -> list[tuple[str, int]]:
