@@ -129,7 +129,8 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
     assert fm.main(["--table", str(table), "--set", "heldout-real", "--scenarios", "0"]) == 2
     assert "scenarios" in capsys.readouterr().err
     assert fm.main(["--table", str(table), "--set", "heldout-real", "--continuations", "atlantis"]) == 2
-    assert "no weather generator 'atlantis' (fitted: benton, gainesville, maricopa)" in capsys.readouterr().err
+    assert ("no generated-weather scenario 'atlantis-generated' (the fitted generators: benton, gainesville, "
+            "maricopa)") in capsys.readouterr().err
     task = get_scenario("climates3-quota")
     sets = {s.name: s for s in evaluation_sets(task, far_seasons=2)}
     assert fm.continuation_source(task, sets["maricopa-generated"])[0] == "maricopa"
@@ -138,8 +139,11 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path, capsys):
     name, early = fm.continuation_source(task, sets["maricopa-generated"], "benton-early")
     assert (name, early.name, str(early.sowing_date)) == ("benton-early", "benton-early-generated", "2000-03-01")
     assert str(fm.continuation_source(task, sets["maricopa-generated"], "benton")[1].sowing_date) == "2000-04-01"
-    with pytest.raises(ValueError, match="no weather generator 'atlantis' .* no climate of the task so named "
-                                         r"\(benton-early\)"):
+    # a delta-changed climate that no part of the task holds (a climate's weather a planner may be told)
+    name, sunny = fm.continuation_source(task, sets["maricopa-generated"], "benton-hot-arid-sunny")
+    assert (name, sunny.weather.generated_climate) == ("benton-hot-arid-sunny", "benton+6C+8DPDx1.25Sx0.3R")
+    with pytest.raises(ValueError, match="no generated-weather scenario 'atlantis-generated' .* the task's climates: "
+                                         r"benton-early\)"):
         fm.continuation_source(task, sets["maricopa-generated"], "atlantis")
     # each set's own: its site's pool sown on its date (the held-out climate sown late: that date's pool)
     for set_name, expected in (("heldout-real", ("benton", "benton-generated", "2000-04-01")),

@@ -350,8 +350,32 @@ def test_a_rain_scaled_generator_scales_every_rain_amount_and_nothing_else_it_dr
             rain_scaled(params, bad)
 
 
+def test_a_brightened_generator_scales_the_radiation_below_clear_sky_and_nothing_else_it_draws():
+    from crop_sim_ros.weather.generator import MIN_SRAD_MJ_M2, brightened, clear_sky_radiation_mj_m2
+    params = benton_parameters()
+    assert brightened(params, 1.0) is params
+    sunny = brightened(params, 1.25)
+    assert sunny.name == "bentonx1.25S"
+    np.testing.assert_allclose(sunny.srad_sd_wet_mj_m2, 1.25 * np.array(params.srad_sd_wet_mj_m2))
+    base, bright = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, sunny))
+    for b, s in zip(base, bright):
+        for name in ("tmax_degc", "tmin_degc", "rain_mm", "vap_hpa", "wind_m_s"):  # the same draws
+            np.testing.assert_array_equal(getattr(s, name), getattr(b, name))
+        day_of_year = np.array([d.timetuple().tm_yday for d in b.dates.astype(object)])
+        cap = clear_sky_radiation_mj_m2(day_of_year, params.site.latitude_deg, params.site.elevation_m)
+        # days the draw lies between the floor and clear sky, scaled or not: exactly 1.25 x
+        below = (1.25 * b.srad_mj_m2 < cap - 1e-9) & (b.srad_mj_m2 > MIN_SRAD_MJ_M2)
+        assert below.mean() > 0.3
+        np.testing.assert_allclose(s.srad_mj_m2[below], 1.25 * b.srad_mj_m2[below], rtol=1e-9)
+        assert np.all(s.srad_mj_m2 <= cap + 1e-9) and np.all(s.srad_mj_m2 >= b.srad_mj_m2)
+        assert s.et0_mm("penman_monteith").mean() > b.et0_mm("penman_monteith").mean()
+    for bad in (0.4, 2.5, float("nan"), "sunny"):
+        with pytest.raises(WeatherError, match="radiation_factor"):
+            brightened(params, bad)
+
+
 def test_a_climate_name_gives_its_parameters_and_a_malformed_one_is_refused_by_name():
-    from crop_sim_ros.weather.generator import climate_name, climate_parameters, dried, rain_scaled, warmed
+    from crop_sim_ros.weather.generator import brightened, climate_name, climate_parameters, dried, rain_scaled, warmed
     for generator, warming, drying, rain, name in (
             ("benton", 0, 0, 1, "benton"), ("benton", 4, 0, 1, "benton+4C"), ("maricopa", -1.5, 0, 1, "maricopa-1.5C"),
             ("benton", 6, 8, 1, "benton+6C+8DPD"), ("benton", 0, 3, 1, "benton+3DPD"),
@@ -359,9 +383,12 @@ def test_a_climate_name_gives_its_parameters_and_a_malformed_one_is_refused_by_n
         assert climate_name(generator, warming, drying, rain) == name
         expected = rain_scaled(dried(warmed(generator_parameters(generator), warming), drying), rain)
         assert climate_parameters(name) == expected and climate_parameters(name).name == name
+    sunny = climate_name("benton", 6, 8, 0.3, radiation_factor=1.25)
+    assert sunny == "benton+6C+8DPDx1.25Sx0.3R"
+    assert climate_parameters(sunny) == rain_scaled(brightened(climate_parameters("benton+6C+8DPD"), 1.25), 0.3)
     for bad in ("mars", "benton+4", "benton+4.0C", "benton+xC", "benton+8DPD+4C", "benton+11C", "gainesville+1DPD",
-                "bentonx0.3", "bentonx0.30R", "bentonx4R", "bentonx0.3R+4C"):
-        with pytest.raises(WeatherError, match=r"climate|drying|warming|rain_factor"):
+                "bentonx0.3", "bentonx0.30R", "bentonx4R", "bentonx0.3R+4C", "bentonx0.3Rx1.25S", "bentonx3S"):
+        with pytest.raises(WeatherError, match=r"climate|drying|warming|rain_factor|radiation_factor"):
             climate_parameters(bad)
 
 

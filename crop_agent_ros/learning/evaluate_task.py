@@ -198,6 +198,8 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
             sown += f", {source.weather.warming_degc:+g} degC"
         if source.weather.drying_degc:
             sown += f", dew-point depression {source.weather.drying_degc:+g} degC"
+        if source.weather.radiation_factor != 1.0:
+            sown += f", radiation x {source.weather.radiation_factor:g}"
         if source.weather.rain_factor != 1.0:
             sown += f", rain x {source.weather.rain_factor:g}"
         if source.weather.spread is not None:

@@ -265,30 +265,31 @@ def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], set
 
 # --- command line: a planner on an evaluated set, beside the oracle and the rule of that evaluation ----------
 
-def fitted_generator(name: str, parts=()) -> str:
-    """``name`` if a weather generator of that name is fitted (ValueError naming those that are, and the task's
-    climates ``parts`` that ``--continuations`` also takes)."""
-    if name not in GENERATOR_NAMES:
-        also = [part for part in parts if part not in GENERATOR_NAMES]
-        raise ValueError(f"--continuations: no weather generator {name!r} (fitted: {', '.join(GENERATOR_NAMES)})"
-                         + (f" and no climate of the task so named ({', '.join(also)})" if also else ""))
-    return name
-
-
 def continuation_source(task, evaluation_set, asked: str | None = None):
     """(name, generated-weather scenario) whose climatology the MPC draws continuations from on ``evaluation_set``
-    (an :class:`~crop_agent_ros.learning.evaluate_task.EvaluationSet` of ``task``): ``asked`` (one of the fitted
-    generators, its ``<name>-generated`` scenario, or a climate of the task named apart from its generator, e.g.
-    ``benton-early``: Benton sown March 1), else the set's own (its site and sowing date: a far set's part of the
-    task, the held-out real seasons' Benton County, the held-out climate's pool sown on the set's date). Asking
-    for another site's shows what a planner that knows only that climate does here (e.g. a training climate's on
-    the held-out one)."""
+    (an :class:`~crop_agent_ros.learning.evaluate_task.EvaluationSet` of ``task``): ``asked`` (a climate of the
+    task named apart from its generator, e.g. ``benton-early``: Benton sown March 1; else any built-in
+    ``<asked>-generated`` scenario: a fitted generator's, or a delta-changed climate no part of the task holds,
+    e.g. ``benton-hot-arid-sunny``), else the set's own (its site and sowing date: a far set's part of the task,
+    the held-out real seasons' Benton County, the held-out climate's pool sown on the set's date). Asking for
+    another climate's shows what a planner that knows only that climate does here (e.g. a training climate's on
+    the held-out one). ValueError names the generators and the task's climates for an unknown one."""
+    from crop_sim_ros.model import UnknownNameError
     from crop_sim_ros.task.scenario import climates, get_scenario
     if asked is not None:
         parts = climates(task)
         if asked not in GENERATOR_NAMES and asked in parts:
             return asked, parts[asked]  # a part named apart from its generator (benton-early: sown March 1)
-        return fitted_generator(asked, parts), get_scenario(f"{asked}-generated", task.data_dir)
+        try:
+            source = get_scenario(f"{asked}-generated", task.data_dir)
+        except UnknownNameError:
+            source = None
+        if source is None or source.weather.kind != "generator":
+            also = [part for part in parts if part not in GENERATOR_NAMES]
+            raise ValueError(f"--continuations: no generated-weather scenario {asked + '-generated'!r} (the fitted "
+                             f"generators: {', '.join(GENERATOR_NAMES)}"
+                             + (f"; the task's climates: {', '.join(also)}" if also else "") + ")")
+        return asked, source
     if evaluation_set.continuations is None:
         raise ValueError(f"family MPC: no weather generator known for set {evaluation_set.name!r}")
     return evaluation_set.continuations

@@ -13,7 +13,9 @@ Weather sources (``weather.kind``):
   raises the generator's mean TMAX and TMIN by that much (a delta-change climate scenario,
   ``crop_sim_ros.weather.generator.warmed``); ``drying_degc`` (likewise) raises its mean dew-point depression
   (TMIN - dew point: drier air, ``dried``; only for a generator fitted with humidity data); ``rain_factor``
-  (default 1, in [0, 3]) multiplies every wet day's rain (``rain_scaled``). ``spread`` (instead of those three)
+  (default 1, in [0, 3]) multiplies every wet day's rain (``rain_scaled``); ``radiation_factor`` (default 1, in
+  [0.5, 2]) every monthly mean and standard deviation of SRAD, each day still capped at clear-sky radiation
+  (clearer skies, ``brightened``). ``spread`` (instead of warming, drying and rain factor)
   gives ranges from which every season draws its own warming, drying, rain factor and sowing delay after
   ``sowing_date``, uniformly (``ClimateSpread``: ``spread: {warming_degc: [0, 8], sowing_delay_days: [0, 61]}``;
   domain randomisation across climates). Needs no file.
@@ -76,8 +78,9 @@ from ..model import FieldParameters, Management, UnknownNameError, crop_library,
 from ..model.et0 import ET0_METHODS
 from ..weather import GENERATOR_NAMES, Site, WeatherError, WeatherSeries, read_agweathernet_csv, read_dssat_wth
 from ..weather.csv_readers import read_plain_csv
-from ..weather.generator import (MAX_DELTA_DEGC, MAX_RAIN_FACTOR, MIN_RAIN_FACTOR, ClimateSpread, climate_name,
-                                 climate_parameters, generate_seasons, generate_spread_seasons)
+from ..weather.generator import (MAX_DELTA_DEGC, MAX_RADIATION_FACTOR, MAX_RAIN_FACTOR, MIN_RADIATION_FACTOR,
+                                 MIN_RAIN_FACTOR, ClimateSpread, climate_name, climate_parameters, generate_seasons,
+                                 generate_spread_seasons)
 from .layout import EXTENDED, PAPER, ObservationLayout
 from .terms import Economics, FarmLimits, check_number as _check_number
 
@@ -179,6 +182,7 @@ class WeatherSource:
     warming_degc: float = 0.0
     drying_degc: float = 0.0
     rain_factor: float = 1.0
+    radiation_factor: float = 1.0
     climate: str = ""  # real seasons: their site's fitted generator ('' none; a generated source's is its own)
     spread: ClimateSpread | None = None  # a generator source whose every season draws its own climate and sowing date
 
@@ -192,16 +196,18 @@ class WeatherSource:
             for delta in ("warming_degc", "drying_degc"):
                 object.__setattr__(self, delta, _check_number(f"weather.{delta}", getattr(self, delta),
                                                               -MAX_DELTA_DEGC, MAX_DELTA_DEGC))
-            object.__setattr__(self, "rain_factor", _check_number("weather.rain_factor", self.rain_factor,
-                                                                  MIN_RAIN_FACTOR, MAX_RAIN_FACTOR))
+            for factor, low, high in (("rain_factor", MIN_RAIN_FACTOR, MAX_RAIN_FACTOR),
+                                      ("radiation_factor", MIN_RADIATION_FACTOR, MAX_RADIATION_FACTOR)):
+                object.__setattr__(self, factor, _check_number(f"weather.{factor}", getattr(self, factor), low, high))
             if self.drying_degc:  # refused here, by name, for a generator fitted without humidity data
                 climate_parameters(self.generated_climate)
             if self.spread is not None:
                 if not isinstance(self.spread, ClimateSpread):
                     raise ValueError(f"weather.spread: expected a ClimateSpread, got {self.spread!r}")
-                if (self.warming_degc, self.drying_degc, self.rain_factor) != (0.0, 0.0, 1.0):
+                if self._delta_changed:
                     raise ValueError("weather.spread: each season draws its warming, drying and rain factor from the "
-                                     "spread's ranges; give those, not weather.warming_degc, drying_degc, rain_factor")
+                                     "spread's ranges; give those, not weather.warming_degc, drying_degc, rain_factor "
+                                     "or radiation_factor")
                 if self.spread.drying_degc != (0.0, 0.0):  # refused by name, as above
                     climate_parameters(climate_name(self.generator, drying_degc=max(self.spread.drying_degc, key=abs)))
             _check_count("weather.n_seasons", self.n_seasons, MAX_GENERATED_SEASONS)
@@ -219,20 +225,26 @@ class WeatherSource:
                              "source's climate is its generator's")
         if self.climate and self.climate not in GENERATOR_PARAMETERS:
             raise ValueError(f"weather.climate: {self.climate!r} is not one of {', '.join(GENERATOR_PARAMETERS)}")
-        changed = (self.warming_degc, self.drying_degc, self.rain_factor) != (0.0, 0.0, 1.0)
-        if self.kind != "generator" and (changed or self.spread is not None):
-            raise ValueError("weather.warming_degc, drying_degc, rain_factor, spread: only a 'generator' source can "
-                             f"be warmed, dried, its rain scaled or spread, not {self.kind!r}")
+        if self.kind != "generator" and (self._delta_changed or self.spread is not None):
+            raise ValueError("weather.warming_degc, drying_degc, rain_factor, radiation_factor, spread: only a "
+                             f"'generator' source can be warmed, dried, its rain scaled, brightened or spread, not "
+                             f"{self.kind!r}")
+
+    @property
+    def _delta_changed(self) -> bool:
+        """Whether any delta-change (warming, drying, rain or radiation factor) is asked."""
+        return (self.warming_degc, self.drying_degc, self.rain_factor, self.radiation_factor) != (0.0, 0.0, 1.0, 1.0)
 
     @property
     def generated_climate(self) -> str:
-        """A generator source's climate: its generator, warmed, dried and its rain scaled as it says
-        (``benton+6C+8DPDx0.3R``), the name its seasons' source carries. ValueError for a spread source, whose
+        """A generator source's climate: its generator, warmed, dried, its radiation and rain scaled as it says
+        (``benton+6C+8DPDx1.25Sx0.3R``), the name its seasons' source carries. ValueError for a spread source, whose
         every season has its own (its source names it)."""
         if self.spread is not None:
             raise ValueError(f"generator {self.generator!r} with a spread: each season draws its own climate (its "
                              "source names it); the source has no one climate")
-        return climate_name(self.generator, self.warming_degc, self.drying_degc, self.rain_factor)
+        return climate_name(self.generator, self.warming_degc, self.drying_degc, self.rain_factor,
+                            self.radiation_factor)
 
 
 # What a weather mapping may name besides its seasons (a file source's path and format become its one season).

@@ -297,33 +297,58 @@ def rain_scaled(params: GeneratorParameters, rain_factor: float) -> GeneratorPar
                    rain_excess_scale_mm=tuple(float(v) * factor for v in params.rain_excess_scale_mm))
 
 
-# A climate's name: a fitted generator, then optionally its warming (C), its drying (DPD) and its rain factor (R),
-# as warmed, dried and rain_scaled write them.
+# Radiation factors a scenario may apply to a generator's SRAD (clearer or cloudier skies).
+MIN_RADIATION_FACTOR, MAX_RADIATION_FACTOR = 0.5, 2.0
+
+
+def brightened(params: GeneratorParameters, radiation_factor: float) -> GeneratorParameters:
+    """``params`` with every monthly mean and standard deviation of SRAD (dry and wet days) multiplied by
+    ``radiation_factor``: clearer (above 1) or cloudier skies, the delta-change of radiation beside
+    :func:`warmed`'s, :func:`dried`'s and :func:`rain_scaled`'s (the same temperatures, humidity, rain, wind and
+    standardized residuals). Every day stays capped at the site's clear-sky radiation Rso, so a month already
+    near it gains less than the factor. Named ``<name>x<factor>S`` (``benton+6C+8DPDx1.25Sx0.3R``). 1 returns
+    ``params``."""
+    factor = _bounded_number("radiation_factor", radiation_factor, MIN_RADIATION_FACTOR, MAX_RADIATION_FACTOR)
+    if factor == 1.0:
+        return params
+    scaled = {name: tuple(float(v) * factor for v in getattr(params, name))
+              for name in ("srad_mean_dry_mj_m2", "srad_mean_wet_mj_m2", "srad_sd_dry_mj_m2", "srad_sd_wet_mj_m2")}
+    return replace(params, name=f"{params.name}x{factor:g}S", **scaled)
+
+
+# A climate's name: a fitted generator, then optionally its warming (C), its drying (DPD), its radiation factor
+# (S) and its rain factor (R), as warmed, dried, brightened and rain_scaled write them.
 _CLIMATE_NAME = re.compile(r"(?P<generator>[a-z_]+)(?:(?P<warming>[+-][0-9.]+)C)?(?:(?P<drying>[+-][0-9.]+)DPD)?"
-                           r"(?:x(?P<rain>[0-9.]+)R)?")
+                           r"(?:x(?P<radiation>[0-9.]+)S)?(?:x(?P<rain>[0-9.]+)R)?")
 
 
-def climate_name(generator: str, warming_degc: float = 0.0, drying_degc: float = 0.0, rain_factor: float = 1.0) -> str:
-    """The name of ``generator`` warmed by ``warming_degc``, dried by ``drying_degc`` and its rain scaled by
-    ``rain_factor`` (``benton+6C+8DPDx0.3R``): the name the climate's parameters and its seasons' source carry."""
+def climate_name(generator: str, warming_degc: float = 0.0, drying_degc: float = 0.0, rain_factor: float = 1.0,
+                 radiation_factor: float = 1.0) -> str:
+    """The name of ``generator`` warmed by ``warming_degc``, dried by ``drying_degc``, its radiation scaled by
+    ``radiation_factor`` and its rain by ``rain_factor`` (``benton+6C+8DPDx1.25Sx0.3R``): the name the climate's
+    parameters and its seasons' source carry."""
     return (generator + (f"{float(warming_degc):+g}C" if warming_degc else "")
             + (f"{float(drying_degc):+g}DPD" if drying_degc else "")
+            + (f"x{float(radiation_factor):g}S" if radiation_factor != 1.0 else "")
             + (f"x{float(rain_factor):g}R" if rain_factor != 1.0 else ""))
 
 
 def climate_parameters(climate: str) -> GeneratorParameters:
-    """The parameters of ``climate`` (``benton``, ``benton+4C``, ``benton+6C+8DPDx0.3R``: see :func:`climate_name`);
+    """The parameters of ``climate`` (``benton``, ``benton+4C``, ``benton+6C+8DPDx1.25Sx0.3R``: see :func:`climate_name`);
     WeatherError naming the fitted generators for an unknown one."""
     match = _CLIMATE_NAME.fullmatch(str(climate))
     if match is None or match["generator"] not in GENERATOR_NAMES:
         raise WeatherError(f"no climate {climate!r}: a fitted generator ({', '.join(GENERATOR_NAMES)}), optionally "
-                           "warmed, dried and its rain scaled as in benton+4C, benton+4C+8DPD or benton+6C+8DPDx0.3R")
+                           "warmed, dried, its radiation and its rain scaled as in benton+4C, benton+4C+8DPD or "
+                           "benton+6C+8DPDx1.25Sx0.3R")
     try:
         warming, drying = (float(match[key] or 0.0) for key in ("warming", "drying"))
-        rain = float(match["rain"] or 1.0)
+        radiation, rain = (float(match[key] or 1.0) for key in ("radiation", "rain"))
     except ValueError:
-        raise WeatherError(f"no climate {climate!r}: its warming, drying or rain factor is not a number") from None
-    params = rain_scaled(dried(warmed(generator_parameters(match["generator"]), warming), drying), rain)
+        raise WeatherError(f"no climate {climate!r}: its warming, drying, radiation or rain factor is not a "
+                           "number") from None
+    params = rain_scaled(brightened(dried(warmed(generator_parameters(match["generator"]), warming), drying),
+                                    radiation), rain)
     if params.name != climate:  # e.g. benton+4.0C, which no generated season's source is named
         raise WeatherError(f"no climate {climate!r}: its parameters are named {params.name!r}")
     return params
