@@ -390,11 +390,21 @@ def test_the_smaller_pivot_task_grows_benton_early_quotas_seasons_within_5_5_mm_
     assert np.all(obs_small[:, yesterday] == 5.5) and np.all(obs_large[:, yesterday] == 8.0)
 
 
+def test_maricopa_sown_spread_sows_each_maricopa_season_on_its_own_day_from_february_7_to_march_31():
+    from crop_sim_ros.weather.generator import generator_of_source
+    table = core.scenario_table(get_scenario("maricopa-sown-spread-quota"))
+    sown = np.array([np.datetime64(d, "D") for d in table.sowing_dates])
+    assert len(sown) == 1000 and {generator_of_source(s) for s in table.sources} == {"maricopa"}
+    assert str(sown.min()) == "2001-02-07" and str(sown.max()) == "2001-03-31"
+    assert len(np.unique(sown)) == 53  # every day of the window
+    assert {"2001-02-28", "2001-03-15"} <= {str(d) for d in sown}  # both late-sown held-out sets' dates
+
+
 def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
                  "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot",
                  "climates4-quota", "benton-early-warm-quota", "climates6-quota", "maricopa-late-quota",
-                 "climates8-quota", "climates10-quota", "climates12-quota"):
+                 "climates8-quota", "climates10-quota", "climates12-quota", "maricopa-sown-spread-quota"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))
