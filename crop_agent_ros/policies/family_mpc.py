@@ -396,9 +396,10 @@ def main(argv=None) -> int:
     parser.add_argument("--scenarios", type=int, help="continuations per decision (default: the planner's, 4 or 8)")
     parser.add_argument("--decision-every-days", type=int, help="days between decisions (default: 7)")
     parser.add_argument("--continuations", metavar="CLIMATE",
-                        help="draw the continuations from this site's weather generator, or from this climate of "
-                             "the task (e.g. benton-early) (default: the set's own site, e.g. maricopa on "
-                             "maricopa-generated)")
+                        help="draw the continuations from this climate of the task (e.g. benton-early), else from "
+                             "the built-in scenario CLIMATE-generated (a site's generator, e.g. gainesville, or a "
+                             "delta-changed climate, e.g. benton-hot-arid-sunny) (default: the set's own site, e.g. "
+                             "maricopa on maricopa-generated)")
     parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
     parser.add_argument("--paired", nargs=2, metavar=("BASE", "OTHER"),
                         help="run nothing: compare two --out files of one task and set, season by season")
