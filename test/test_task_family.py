@@ -232,7 +232,8 @@ def test_climates4_holds_climates3s_seasons_first_and_a_warmed_early_benton_part
     values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
               "weather": {"kind": "seasons", "warming_degc": 1.0,
                           "seasons": [{"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}}
-    with pytest.raises(ValueError, match="weather.warming_degc, drying_degc, rain_factor, radiation_factor, spread: only a 'generator' source can be warmed"):
+    with pytest.raises(ValueError, match="weather.warming_degc, drying_degc, diurnal_range_degc, rain_factor, "
+                                         "radiation_factor, spread: only a 'generator' source can be warmed"):
         scenario_from_dict(values)
     with pytest.raises(ValueError, match="weather.warming_degc"):
         scenario_from_dict({**values, "sowing_date": "2000-04-01",
@@ -313,7 +314,8 @@ def test_climates12_holds_climates10s_seasons_first_and_its_hot_dry_parts_with_a
               "sowing_date": "2000-04-01"}
     with pytest.raises(ValueError, match="weather.rain_factor"):
         scenario_from_dict({**values, "weather": {"kind": "generator", "generator": "benton", "rain_factor": -1}})
-    with pytest.raises(ValueError, match="only a 'generator' source can be warmed, dried, its rain scaled"):
+    with pytest.raises(ValueError, match="only a 'generator' source can be warmed, dried, its diurnal range widened, "
+                                         "its rain scaled"):
         scenario_from_dict({**values, "weather": {"kind": "seasons", "rain_factor": 0.5, "seasons": [
             {"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]}})
 
@@ -349,13 +351,17 @@ def test_climates_spread_holds_climates12s_seasons_first_and_6000_seasons_each_i
             ({**generator, "generator": "gainesville", "spread": {"drying_degc": [0, 2]}}, "without humidity data"),
             ({"kind": "seasons", "spread": {"warming_degc": [0, 2]},
               "seasons": [{"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]},
-             "only a 'generator' source can be warmed, dried, its rain scaled, brightened or spread"),
+             "only a 'generator' source can be warmed, dried, its diurnal range widened, its rain scaled, brightened or "
+             "spread"),
             ({**generator, "radiation_factor": 1.2, "spread": {"warming_degc": [0, 2]}},
              "weather.spread: each season draws"),
             ({**generator, "radiation_factor": 2.5}, r"weather.radiation_factor: 2.5 is not"),
+            ({**generator, "diurnal_range_degc": -12}, r"weather.diurnal_range_degc: -12 is not"),
+            ({**generator, "diurnal_range_degc": 2, "spread": {"warming_degc": [0, 2]}},
+             "weather.spread: each season draws"),
             ({"kind": "seasons", "radiation_factor": 1.2,
               "seasons": [{"path": "a.wth", "format": "dssat", "sowing_date": "2000-04-01"}]},
-             "only a 'generator' source can be warmed, dried, its rain scaled, brightened")):
+             "only a 'generator' source can be warmed, dried, its diurnal range widened, its rain scaled, brightened")):
         with pytest.raises(ValueError, match=message):
             scenario_from_dict({**values, "weather": weather})
 

@@ -350,6 +350,28 @@ def test_a_rain_scaled_generator_scales_every_rain_amount_and_nothing_else_it_dr
             rain_scaled(params, bad)
 
 
+def test_a_widened_generator_raises_tmax_and_lowers_tmin_by_half_the_widening_each():
+    from crop_sim_ros.weather.generator import widened
+    params = benton_parameters()
+    assert widened(params, 0.0) is params
+    wide = widened(params, 4.0)
+    assert wide.name == "benton+4DTR" and widened(params, -1).name == "benton-1DTR"
+    np.testing.assert_allclose(wide.tmin_mean_wet_degc, np.array(params.tmin_mean_wet_degc) - 2.0)
+    np.testing.assert_allclose(wide.tmax_mean_dry_degc, np.array(params.tmax_mean_dry_degc) + 2.0)
+    base, desert = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, wide))
+    for b, w in zip(base, desert):
+        for name in ("rain_mm", "srad_mj_m2", "wind_m_s"):  # the same draws
+            np.testing.assert_array_equal(getattr(w, name), getattr(b, name))
+        # each day 2 degC hotter by day and colder by night, but for the rare day the draws cross (swapped)
+        shifted = np.isclose(w.tmax_degc - b.tmax_degc, 2.0) & np.isclose(w.tmin_degc - b.tmin_degc, -2.0)
+        assert shifted.mean() > 0.97
+        np.testing.assert_allclose((w.tmax_degc + w.tmin_degc) / 2, (b.tmax_degc + b.tmin_degc) / 2, atol=1e-9)
+        assert w.vap_hpa.mean() < b.vap_hpa.mean()  # the dew point follows TMIN down
+    for bad in (10.5, float("nan"), "wide"):
+        with pytest.raises(WeatherError, match="diurnal_range_degc"):
+            widened(params, bad)
+
+
 def test_a_brightened_generator_scales_the_radiation_below_clear_sky_and_nothing_else_it_draws():
     from crop_sim_ros.weather.generator import MIN_SRAD_MJ_M2, brightened, clear_sky_radiation_mj_m2
     params = benton_parameters()
@@ -375,7 +397,8 @@ def test_a_brightened_generator_scales_the_radiation_below_clear_sky_and_nothing
 
 
 def test_a_climate_name_gives_its_parameters_and_a_malformed_one_is_refused_by_name():
-    from crop_sim_ros.weather.generator import brightened, climate_name, climate_parameters, dried, rain_scaled, warmed
+    from crop_sim_ros.weather.generator import (brightened, climate_name, climate_parameters, dried, rain_scaled,
+                                                warmed, widened)
     for generator, warming, drying, rain, name in (
             ("benton", 0, 0, 1, "benton"), ("benton", 4, 0, 1, "benton+4C"), ("maricopa", -1.5, 0, 1, "maricopa-1.5C"),
             ("benton", 6, 8, 1, "benton+6C+8DPD"), ("benton", 0, 3, 1, "benton+3DPD"),
@@ -386,9 +409,14 @@ def test_a_climate_name_gives_its_parameters_and_a_malformed_one_is_refused_by_n
     sunny = climate_name("benton", 6, 8, 0.3, radiation_factor=1.25)
     assert sunny == "benton+6C+8DPDx1.25Sx0.3R"
     assert climate_parameters(sunny) == rain_scaled(brightened(climate_parameters("benton+6C+8DPD"), 1.25), 0.3)
+    desert = climate_name("benton", 4, 8, 0.3, 1.25, diurnal_range_degc=4)
+    assert desert == "benton+4C+4DTR+8DPDx1.25Sx0.3R"
+    assert climate_parameters(desert) == rain_scaled(brightened(dried(widened(warmed(benton_parameters(), 4), 4), 8),
+                                                                1.25), 0.3)
     for bad in ("mars", "benton+4", "benton+4.0C", "benton+xC", "benton+8DPD+4C", "benton+11C", "gainesville+1DPD",
-                "bentonx0.3", "bentonx0.30R", "bentonx4R", "bentonx0.3R+4C", "bentonx0.3Rx1.25S", "bentonx3S"):
-        with pytest.raises(WeatherError, match=r"climate|drying|warming|rain_factor|radiation_factor"):
+                "bentonx0.3", "bentonx0.30R", "bentonx4R", "bentonx0.3R+4C", "bentonx0.3Rx1.25S", "bentonx3S",
+                "benton+8DPD+4DTR", "benton+11DTR"):
+        with pytest.raises(WeatherError, match=r"climate|drying|warming|rain_factor|radiation_factor|diurnal_range"):
             climate_parameters(bad)
 
 

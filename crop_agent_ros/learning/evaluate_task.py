@@ -196,6 +196,8 @@ def evaluation_sets(task, far_seasons: int, far_seed: int = FAR_SEED) -> list[Ev
         sown = "" if name == generator else f", sown {source.sowing_date:%B} {source.sowing_date.day}"
         if source.weather.warming_degc:
             sown += f", {source.weather.warming_degc:+g} degC"
+        if source.weather.diurnal_range_degc:
+            sown += f", diurnal range {source.weather.diurnal_range_degc:+g} degC"
         if source.weather.drying_degc:
             sown += f", dew-point depression {source.weather.drying_degc:+g} degC"
         if source.weather.radiation_factor != 1.0:

@@ -12,11 +12,11 @@ Weather sources (``weather.kind``):
   ``n_seasons: 1`` is a single fixed generated season. ``warming_degc`` (default 0, at most 10 either way)
   raises the generator's mean TMAX and TMIN by that much (a delta-change climate scenario,
   ``crop_sim_ros.weather.generator.warmed``); ``drying_degc`` (likewise) raises its mean dew-point depression
-  (TMIN - dew point: drier air, ``dried``; only for a generator fitted with humidity data); ``rain_factor``
-  (default 1, in [0, 3]) multiplies every wet day's rain (``rain_scaled``); ``radiation_factor`` (default 1, in
-  [0.5, 2]) every monthly mean and standard deviation of SRAD, each day still capped at clear-sky radiation
-  (clearer skies, ``brightened``). ``spread`` (instead of warming, drying and rain factor)
-  gives ranges from which every season draws its own warming, drying, rain factor and sowing delay after
+  (TMIN - dew point: drier air, ``dried``; only for a generator fitted with humidity data);
+  ``diurnal_range_degc`` (likewise) widens TMAX - TMIN, TMAX up and TMIN down by half each (``widened``);
+  ``rain_factor`` (default 1, in [0, 3]) multiplies every wet day's rain (``rain_scaled``); ``radiation_factor``
+  (default 1, in [0.5, 2]) every monthly mean and standard deviation of SRAD, each day still capped at clear-sky
+  radiation (clearer skies, ``brightened``). ``spread`` (instead of those) gives ranges from which every season draws its own warming, drying, rain factor and sowing delay after
   ``sowing_date``, uniformly (``ClimateSpread``: ``spread: {warming_degc: [0, 8], sowing_delay_days: [0, 61]}``;
   domain randomisation across climates). Needs no file.
 - ``file``: one weather file (``path``, ``format``), the season starting on ``sowing_date``.
@@ -181,6 +181,7 @@ class WeatherSource:
     mixture: tuple[str, ...] = ()
     warming_degc: float = 0.0
     drying_degc: float = 0.0
+    diurnal_range_degc: float = 0.0
     rain_factor: float = 1.0
     radiation_factor: float = 1.0
     climate: str = ""  # real seasons: their site's fitted generator ('' none; a generated source's is its own)
@@ -193,7 +194,7 @@ class WeatherSource:
             if self.generator not in GENERATOR_PARAMETERS:
                 raise ValueError(f"weather.generator: {self.generator!r} is not one of "
                                  f"{', '.join(GENERATOR_PARAMETERS)}")
-            for delta in ("warming_degc", "drying_degc"):
+            for delta in ("warming_degc", "drying_degc", "diurnal_range_degc"):
                 object.__setattr__(self, delta, _check_number(f"weather.{delta}", getattr(self, delta),
                                                               -MAX_DELTA_DEGC, MAX_DELTA_DEGC))
             for factor, low, high in (("rain_factor", MIN_RAIN_FACTOR, MAX_RAIN_FACTOR),
@@ -206,8 +207,8 @@ class WeatherSource:
                     raise ValueError(f"weather.spread: expected a ClimateSpread, got {self.spread!r}")
                 if self._delta_changed:
                     raise ValueError("weather.spread: each season draws its warming, drying and rain factor from the "
-                                     "spread's ranges; give those, not weather.warming_degc, drying_degc, rain_factor "
-                                     "or radiation_factor")
+                                     "spread's ranges; give those, not weather.warming_degc, drying_degc, "
+                                     "diurnal_range_degc, rain_factor or radiation_factor")
                 if self.spread.drying_degc != (0.0, 0.0):  # refused by name, as above
                     climate_parameters(climate_name(self.generator, drying_degc=max(self.spread.drying_degc, key=abs)))
             _check_count("weather.n_seasons", self.n_seasons, MAX_GENERATED_SEASONS)
@@ -226,25 +227,27 @@ class WeatherSource:
         if self.climate and self.climate not in GENERATOR_PARAMETERS:
             raise ValueError(f"weather.climate: {self.climate!r} is not one of {', '.join(GENERATOR_PARAMETERS)}")
         if self.kind != "generator" and (self._delta_changed or self.spread is not None):
-            raise ValueError("weather.warming_degc, drying_degc, rain_factor, radiation_factor, spread: only a "
-                             f"'generator' source can be warmed, dried, its rain scaled, brightened or spread, not "
+            raise ValueError("weather.warming_degc, drying_degc, diurnal_range_degc, rain_factor, radiation_factor, "
+                             "spread: only a 'generator' source can be warmed, dried, its diurnal range widened, its "
+                             f"rain scaled, brightened or spread, not "
                              f"{self.kind!r}")
 
     @property
     def _delta_changed(self) -> bool:
-        """Whether any delta-change (warming, drying, rain or radiation factor) is asked."""
-        return (self.warming_degc, self.drying_degc, self.rain_factor, self.radiation_factor) != (0.0, 0.0, 1.0, 1.0)
+        """Whether any delta-change (warming, drying, diurnal range, rain or radiation factor) is asked."""
+        return ((self.warming_degc, self.drying_degc, self.diurnal_range_degc, self.rain_factor, self.radiation_factor)
+                != (0.0, 0.0, 0.0, 1.0, 1.0))
 
     @property
     def generated_climate(self) -> str:
-        """A generator source's climate: its generator, warmed, dried, its radiation and rain scaled as it says
-        (``benton+6C+8DPDx1.25Sx0.3R``), the name its seasons' source carries. ValueError for a spread source, whose
+        """A generator source's climate: its generator, warmed, its diurnal range widened, dried, its radiation
+        and rain scaled as it says (``benton+4C+4DTR+8DPDx1.25Sx0.3R``), the name its seasons' source carries. ValueError for a spread source, whose
         every season has its own (its source names it)."""
         if self.spread is not None:
             raise ValueError(f"generator {self.generator!r} with a spread: each season draws its own climate (its "
                              "source names it); the source has no one climate")
         return climate_name(self.generator, self.warming_degc, self.drying_degc, self.rain_factor,
-                            self.radiation_factor)
+                            self.radiation_factor, self.diurnal_range_degc)
 
 
 # What a weather mapping may name besides its seasons (a file source's path and format become its one season).
