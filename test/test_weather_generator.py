@@ -288,101 +288,94 @@ def test_changing_a_parameter_changes_the_weather():
     assert sum(s.rain_mm.sum() for s in generate_seasons(drier, SEASON_START, SEASON_DAYS, 20, seed=1)) == 0
 
 
+def _delta_changed(change, params, value, neutral, name, kept, bad_values):
+    """``change(params, value)``'s parameters (named ``name``) and 20 generated seasons of ``params`` and of them
+    (seed 3), after checking that the neutral value returns ``params``, that the columns ``kept`` are drawn the
+    same, and that each bad value is refused naming the change's argument."""
+    assert change(params, neutral) is params
+    changed = change(params, value)
+    assert changed.name == name
+    argument = change.__code__.co_varnames[1]
+    for bad in bad_values:
+        with pytest.raises((WeatherError, ValueError), match=argument):
+            change(params, bad)
+    base, other = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, changed))
+    for b, o in zip(base, other):
+        for column in kept:
+            np.testing.assert_array_equal(getattr(o, column), getattr(b, column))
+        assert o.source.startswith(f"generator({name}, seed=3")
+    return changed, base, other
+
+
+def _penman_monteith_mean(seasons) -> float:
+    return float(np.mean([s.et0_mm("penman_monteith").mean() for s in seasons]))
+
+
 def test_a_warmed_generator_raises_the_temperatures_and_nothing_else_it_draws():
     from crop_sim_ros.weather.generator import warmed
     params = benton_parameters()
-    assert warmed(params, 0.0) is params
-    warm = warmed(params, 4.0)
-    assert warm.name == "benton+4C" and warmed(params, -1.5).name == "benton-1.5C"
+    assert warmed(params, -1.5).name == "benton-1.5C"
+    warm, base, hot = _delta_changed(warmed, params, 4.0, 0.0, "benton+4C", ("rain_mm", "srad_mj_m2", "wind_m_s"),
+                                     (10.5, float("nan"), "warm"))
     np.testing.assert_allclose(warm.tmin_mean_wet_degc, np.array(params.tmin_mean_wet_degc) + 4.0)
-    base, hot = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, warm))
     for b, h in zip(base, hot):
         np.testing.assert_allclose(h.tmax_degc - b.tmax_degc, 4.0, atol=1e-9)
         np.testing.assert_allclose(h.tmin_degc - b.tmin_degc, 4.0, atol=1e-9)
-        np.testing.assert_array_equal(h.rain_mm, b.rain_mm)  # same draws: rain, radiation, wind
-        np.testing.assert_array_equal(h.srad_mj_m2, b.srad_mj_m2)
         assert np.all(h.vap_hpa > b.vap_hpa)  # the dew-point depression is kept: moister air when warmer
-        assert h.source.startswith("generator(benton+4C, seed=3")
-    assert np.mean([h.et0_mm("penman_monteith").sum() for h in hot]) > np.mean(
-        [b.et0_mm("penman_monteith").sum() for b in base])
-    for bad in (10.5, float("nan"), "warm"):
-        with pytest.raises((WeatherError, ValueError), match="warming_degc"):
-            warmed(params, bad)
+    assert _penman_monteith_mean(hot) > _penman_monteith_mean(base)
 
 
 def test_a_dried_generator_lowers_the_vapour_pressure_and_nothing_else_it_draws():
     from crop_sim_ros.weather.generator import dried, warmed
     params = warmed(benton_parameters(), 6.0)
-    assert dried(params, 0.0) is params
-    dry = dried(params, 8.0)
-    assert dry.name == "benton+6C+8DPD" and dried(benton_parameters(), -2).name == "benton-2DPD"
+    assert dried(benton_parameters(), -2).name == "benton-2DPD"
+    dry, base, arid = _delta_changed(dried, params, 8.0, 0.0, "benton+6C+8DPD",
+                                     ("tmax_degc", "tmin_degc", "rain_mm", "srad_mj_m2", "wind_m_s"),
+                                     (-10.5, float("inf"), None))
     np.testing.assert_allclose(dry.dew_point_depression_mean_degc, np.array(params.dew_point_depression_mean_degc) + 8)
     assert dry.dew_point_depression_sd_degc == params.dew_point_depression_sd_degc
-    base, arid = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, dry))
     for b, a in zip(base, arid):
-        for name in ("tmax_degc", "tmin_degc", "rain_mm", "srad_mj_m2", "wind_m_s"):  # the same draws
-            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
         assert np.all(a.vap_hpa <= b.vap_hpa) and a.vap_hpa.mean() < 0.8 * b.vap_hpa.mean()
         # drier air: a larger vapour-pressure deficit (though more net long-wave loss, so not every day)
         assert a.et0_mm("penman_monteith").mean() > b.et0_mm("penman_monteith").mean()
-        assert a.source.startswith("generator(benton+6C+8DPD, seed=3")
     with pytest.raises(WeatherError, match="drying_degc: gainesville was fitted without humidity data"):
         dried(generator_parameters("gainesville"), 2.0)
-    for bad in (-10.5, float("inf"), None):
-        with pytest.raises(WeatherError, match="drying_degc"):
-            dried(params, bad)
 
 
 def test_a_rain_scaled_generator_scales_every_rain_amount_and_nothing_else_it_draws():
     from crop_sim_ros.weather.generator import rain_scaled
-    params = benton_parameters()
-    assert rain_scaled(params, 1.0) is params
-    arid = rain_scaled(params, 0.3)
-    assert arid.name == "bentonx0.3R"
-    base, dry = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, arid))
+    _, base, dry = _delta_changed(rain_scaled, benton_parameters(), 0.3, 1.0, "bentonx0.3R",
+                                  ("tmax_degc", "tmin_degc", "srad_mj_m2", "vap_hpa", "wind_m_s"),
+                                  (-0.1, 3.5, float("nan"), "dry"))
     assert sum(b.rain_mm.sum() for b in base) > 100
     for b, a in zip(base, dry):
         np.testing.assert_allclose(a.rain_mm, 0.3 * b.rain_mm, rtol=1e-12)  # the same wet days, 0.3 x the rain
-        for name in ("tmax_degc", "tmin_degc", "srad_mj_m2", "vap_hpa", "wind_m_s"):
-            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
-    for bad in (-0.1, 3.5, float("nan"), "dry"):
-        with pytest.raises(WeatherError, match="rain_factor"):
-            rain_scaled(params, bad)
 
 
 def test_a_widened_generator_raises_tmax_and_lowers_tmin_by_half_the_widening_each():
     from crop_sim_ros.weather.generator import widened
     params = benton_parameters()
-    assert widened(params, 0.0) is params
-    wide = widened(params, 4.0)
-    assert wide.name == "benton+4DTR" and widened(params, -1).name == "benton-1DTR"
+    assert widened(params, -1).name == "benton-1DTR"
+    wide, base, desert = _delta_changed(widened, params, 4.0, 0.0, "benton+4DTR", ("rain_mm", "srad_mj_m2", "wind_m_s"),
+                                        (10.5, float("nan"), "wide"))
     np.testing.assert_allclose(wide.tmin_mean_wet_degc, np.array(params.tmin_mean_wet_degc) - 2.0)
     np.testing.assert_allclose(wide.tmax_mean_dry_degc, np.array(params.tmax_mean_dry_degc) + 2.0)
-    base, desert = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, wide))
     for b, w in zip(base, desert):
-        for name in ("rain_mm", "srad_mj_m2", "wind_m_s"):  # the same draws
-            np.testing.assert_array_equal(getattr(w, name), getattr(b, name))
         # each day 2 degC hotter by day and colder by night, but for the rare day the draws cross (swapped)
         shifted = np.isclose(w.tmax_degc - b.tmax_degc, 2.0) & np.isclose(w.tmin_degc - b.tmin_degc, -2.0)
         assert shifted.mean() > 0.97
         np.testing.assert_allclose((w.tmax_degc + w.tmin_degc) / 2, (b.tmax_degc + b.tmin_degc) / 2, atol=1e-9)
         assert w.vap_hpa.mean() < b.vap_hpa.mean()  # the dew point follows TMIN down
-    for bad in (10.5, float("nan"), "wide"):
-        with pytest.raises(WeatherError, match="diurnal_range_degc"):
-            widened(params, bad)
 
 
 def test_a_brightened_generator_scales_the_radiation_below_clear_sky_and_nothing_else_it_draws():
     from crop_sim_ros.weather.generator import MIN_SRAD_MJ_M2, brightened, clear_sky_radiation_mj_m2
     params = benton_parameters()
-    assert brightened(params, 1.0) is params
-    sunny = brightened(params, 1.25)
-    assert sunny.name == "bentonx1.25S"
+    sunny, base, bright = _delta_changed(brightened, params, 1.25, 1.0, "bentonx1.25S",
+                                         ("tmax_degc", "tmin_degc", "rain_mm", "vap_hpa", "wind_m_s"),
+                                         (0.4, 2.5, float("nan"), "sunny"))
     np.testing.assert_allclose(sunny.srad_sd_wet_mj_m2, 1.25 * np.array(params.srad_sd_wet_mj_m2))
-    base, bright = (generate_seasons(p, SEASON_START, SEASON_DAYS, 20, seed=3) for p in (params, sunny))
     for b, s in zip(base, bright):
-        for name in ("tmax_degc", "tmin_degc", "rain_mm", "vap_hpa", "wind_m_s"):  # the same draws
-            np.testing.assert_array_equal(getattr(s, name), getattr(b, name))
         day_of_year = np.array([d.timetuple().tm_yday for d in b.dates.astype(object)])
         cap = clear_sky_radiation_mj_m2(day_of_year, params.site.latitude_deg, params.site.elevation_m)
         # days the draw lies between the floor and clear sky, scaled or not: exactly 1.25 x
@@ -390,10 +383,7 @@ def test_a_brightened_generator_scales_the_radiation_below_clear_sky_and_nothing
         assert below.mean() > 0.3
         np.testing.assert_allclose(s.srad_mj_m2[below], 1.25 * b.srad_mj_m2[below], rtol=1e-9)
         assert np.all(s.srad_mj_m2 <= cap + 1e-9) and np.all(s.srad_mj_m2 >= b.srad_mj_m2)
-        assert s.et0_mm("penman_monteith").mean() > b.et0_mm("penman_monteith").mean()
-    for bad in (0.4, 2.5, float("nan"), "sunny"):
-        with pytest.raises(WeatherError, match="radiation_factor"):
-            brightened(params, bad)
+    assert _penman_monteith_mean(bright) > _penman_monteith_mean(base)
 
 
 def test_a_climate_name_gives_its_parameters_and_a_malformed_one_is_refused_by_name():
