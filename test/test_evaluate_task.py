@@ -353,13 +353,13 @@ def test_evaluation_sets_carry_the_task_terms_to_other_weather():
     assert (early.scenario.weather.generator, early.scenario.weather.seed, str(early.scenario.sowing_date)) == \
         ("benton", 900_001, "2000-03-01")
     assert "sown March 1" in early.role and early.scenario.name == "climates3-quota@benton-early-generated-seed900001"
-    # a far set's role names each delta-change of its part, the radiation factor too
+    # a far set's role names each delta-change of its part, the diurnal range and radiation factor too
     quota = get_scenario(TASK)
-    sunny_task = replace(quota, name="sunny-quota", sowing_date=None, weather=replace(
-        quota.weather, kind="mixture", mixture=("benton-generated", "benton-hot-arid-sunny-generated")))
-    sunny = {s.name: s for s in et.evaluation_sets(sunny_task, far_seasons=2)}["far-benton-hot-arid-sunny"]
-    assert ("sown April 1, +6 degC, dew-point depression +8 degC, radiation x 1.25, rain x 0.3, seed 900001"
-            in sunny.role)
+    desert_task = replace(quota, name="desert-quota", sowing_date=None, weather=replace(
+        quota.weather, kind="mixture", mixture=("benton-generated", "benton-hot-arid-wide-sunny-generated")))
+    desert = {s.name: s for s in et.evaluation_sets(desert_task, far_seasons=2)}["far-benton-hot-arid-wide-sunny"]
+    assert ("sown April 1, +4 degC, diurnal range +4 degC, dew-point depression +8 degC, radiation x 1.25, "
+            "rain x 0.3, seed 900001") in desert.role
 
 
 def test_resample_counts_draw_with_replacement():
