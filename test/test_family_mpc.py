@@ -48,7 +48,7 @@ def test_a_replan_keeps_the_frozen_days_and_named_starts_are_refused(quota_task)
         replace(problem, frozen_days=problem.days + 1)
 
 
-def test_the_continuation_is_aligned_by_the_day_of_the_year(quota_task):
+def test_the_continuation_is_aligned_by_the_day_of_the_year_or_by_the_days_after_sowing(quota_task):
     _, contexts, pool = quota_task
     truth = replace(contexts[0], extra={**contexts[0].extra, "sowing_date": "2000-04-10"})  # day 101 of 2000
     guess = replace(pool["benton"][0], extra={**pool["benton"][0].extra, "sowing_date": "2001-04-05"})         # day 95 of 2001
@@ -57,6 +57,19 @@ def test_the_continuation_is_aligned_by_the_day_of_the_year(quota_task):
     np.testing.assert_array_equal(out.et0_mm[50:60], guess.et0_mm[56:66])  # 6 days of the year later
     np.testing.assert_array_equal(out.tmax_degc[-1], guess.tmax_degc[-1])  # past its end: its last day
     assert len(out.rain_mm) == len(truth.rain_mm)
+    # or by the days after sowing (a climate sown on another date): day d of the season is the guess's day d
+    by_sowing = fm.spliced(truth, guess, known_days=50, align="sowing")
+    np.testing.assert_array_equal(by_sowing.rain_mm[:50], truth.rain_mm[:50])
+    np.testing.assert_array_equal(by_sowing.et0_mm[50:60], guess.et0_mm[50:60])
+    with pytest.raises(ValueError, match="align must be one of day-of-year, sowing"):
+        fm.spliced(truth, guess, known_days=50, align="month")
+    # a planner reads its continuations as it is told, and says so where it is not the default
+    constants = fo.TaskConstants.of_scenario(get_scenario("benton-quota"))
+    assert "align" not in fm.planner(constants, pool, CHEAP).describe()
+    for settings in (CHEAP, CHEAP_HINDSIGHT, CHEAP_EXPECTED):
+        assert fm.planner(constants, pool, settings, align="sowing").describe()["align"] == "sowing"
+    with pytest.raises(ValueError, match="align must be one of"):
+        fm.planner(constants, pool, CHEAP_EXPECTED, align="month")
 
 
 def _daily_irrigation(scenario, contexts, pool, seed, settings, seasons=(0,)):

@@ -117,8 +117,8 @@ class FamilyExpectedPolicy(FamilyHindsightPolicy):
 
     name = "family-expected"
 
-    def __init__(self, constants, pools, settings: ExpectedSettings = ExpectedSettings()):
-        super().__init__(constants, pools, settings)
+    def __init__(self, constants, pools, settings: ExpectedSettings = ExpectedSettings(), align: str = "day-of-year"):
+        super().__init__(constants, pools, settings, align)
 
     def _programme(self, problems: list, water_step_mm: float, offset_step_degc_d: float) -> ExpectedProgramme:
         return ExpectedProgramme([SeasonProgramme(p, water_step_mm, offset_step_degc_d) for p in problems],
@@ -128,7 +128,7 @@ class FamilyExpectedPolicy(FamilyHindsightPolicy):
         began = time.process_time()
         s = self.settings
         truth = self.problems[i]
-        problems = [replace(truth, context=spliced(truth.context, continuation, day + 1))
+        problems = [replace(truth, context=spliced(truth.context, continuation, day + 1, self.align))
                     for continuation in self.field_pools[i]]
         fine = self._programme(problems, s.water_step_mm, s.offset_step_degc_d)
         search = fine if s.search_water_step_mm is None else self._programme(

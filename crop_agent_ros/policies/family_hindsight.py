@@ -105,8 +105,8 @@ class FamilyHindsightPolicy(ContinuationPlanner):
     name = "family-hindsight"
 
     def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]],
-                 settings: HindsightSettings = HindsightSettings()):
-        super().__init__(constants, pools, settings)
+                 settings: HindsightSettings = HindsightSettings(), align: str = "day-of-year"):
+        super().__init__(constants, pools, settings, align)
 
     def begin_season(self, context) -> None:
         super().begin_season(context)
@@ -140,7 +140,7 @@ class FamilyHindsightPolicy(ContinuationPlanner):
         keep_until = day + s.decision_every_days + 1  # the tables the days to the next decision read
         guesses = []
         for continuation in self.field_pools[i]:
-            problem = replace(truth, context=spliced(truth.context, continuation, day + 1))
+            problem = replace(truth, context=spliced(truth.context, continuation, day + 1, self.align))
             programme = SeasonProgramme(problem, s.water_step_mm, s.offset_step_degc_d)
             search = programme if s.search_water_step_mm is None else SeasonProgramme(
                 problem, s.search_water_step_mm, s.search_offset_step_degc_d)

@@ -119,10 +119,19 @@ def _day_of_year(context: SeasonContext) -> int:
     return datetime.date.fromisoformat(context.extra["sowing_date"]).timetuple().tm_yday
 
 
-def spliced(truth: SeasonContext, continuation: SeasonContext, known_days: int) -> SeasonContext:
-    """``truth``'s weather on days 0..known_days-1, then ``continuation``'s on the same days of the year (its
-    last day repeated past its end), over ``truth``'s length: what the controller plans on."""
-    offset = _day_of_year(truth) - _day_of_year(continuation)
+# How a continuation's days stand in for a season's days to come: the same days of the year (the default: a
+# climate's calendar), or the same days after sowing (a crop's own calendar; for a climate sown on another date).
+ALIGNMENTS = ("day-of-year", "sowing")
+
+
+def spliced(truth: SeasonContext, continuation: SeasonContext, known_days: int,
+            align: str = "day-of-year") -> SeasonContext:
+    """``truth``'s weather on days 0..known_days-1, then ``continuation``'s on the same days of the year (``align``
+    "day-of-year") or the same days after sowing ("sowing"), its first or last day repeated outside it, over
+    ``truth``'s length: what the controller plans on."""
+    if align not in ALIGNMENTS:
+        raise ValueError(f"family MPC: align must be one of {', '.join(ALIGNMENTS)}, got {align!r}")
+    offset = _day_of_year(truth) - _day_of_year(continuation) if align == "day-of-year" else 0
     days = np.arange(len(truth.rain_mm))
     source = np.clip(days + offset, 0, len(continuation.rain_mm) - 1)
     series = {}
@@ -141,7 +150,11 @@ class ContinuationPlanner(BasePolicy):
 
     observation_sizes = (EXTENDED.size,)
 
-    def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings):
+    def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings,
+                 align: str = "day-of-year"):
+        if align not in ALIGNMENTS:
+            raise ValueError(f"{self.name}: align must be one of {', '.join(ALIGNMENTS)}, got {align!r}")
+        self.align = align
         if not pools or min(len(pool) for pool in pools.values()) < settings.scenarios:
             raise ValueError(f"{self.name}: {settings.scenarios} scenarios need as many seasons in every pool, got "
                              f"{ {name: len(pool) for name, pool in pools.items()} }")
@@ -161,7 +174,8 @@ class ContinuationPlanner(BasePolicy):
         self.done = np.zeros(len(self.contexts), dtype=bool)
 
     def describe(self):
-        return {"name": self.name, "pool_seed": POOL_SEED, "pools": sorted(self.pools), **asdict(self.settings)}
+        described = {"name": self.name, "pool_seed": POOL_SEED, "pools": sorted(self.pools), **asdict(self.settings)}
+        return described if self.align == "day-of-year" else {**described, "align": self.align}
 
     def _check_batch(self, obs) -> None:
         if not self.contexts or len(self.contexts) != len(obs):
@@ -176,8 +190,8 @@ class FamilyMpcPolicy(ContinuationPlanner):
     name = "family-mpc"
 
     def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]],
-                 settings: MpcSettings = MpcSettings()):
-        super().__init__(constants, pools, settings)
+                 settings: MpcSettings = MpcSettings(), align: str = "day-of-year"):
+        super().__init__(constants, pools, settings, align)
 
     def begin_season(self, context) -> None:
         super().begin_season(context)
@@ -192,7 +206,7 @@ class FamilyMpcPolicy(ContinuationPlanner):
         for i in fields:
             truth = self.problems[i]
             for j, continuation in enumerate(self.field_pools[i]):
-                context = spliced(truth.context, continuation, day + 1)
+                context = spliced(truth.context, continuation, day + 1, self.align)
                 problems.append(replace(truth, context=context, frozen_days=day))
                 if day > 0:
                     start = np.concatenate([self.applied[i][:day], self.plans[i][j][day:]])
@@ -249,17 +263,18 @@ def planner_settings(method: str, scenarios: int | None = None, decision_every_d
     return kinds[method](**{name: value for name, value in given.items() if value is not None})
 
 
-def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings) -> BasePolicy:
+def planner(constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings,
+            align: str = "day-of-year") -> BasePolicy:
     """The causal planner that ``settings`` (:class:`MpcSettings`, ``HindsightSettings`` or ``ExpectedSettings``)
-    configures."""
+    configures, reading its continuations by ``align`` (:func:`spliced`)."""
     from .family_expected import ExpectedSettings, FamilyExpectedPolicy
     from .family_hindsight import FamilyHindsightPolicy, HindsightSettings
     if isinstance(settings, ExpectedSettings):
-        return FamilyExpectedPolicy(constants, pools, settings)
+        return FamilyExpectedPolicy(constants, pools, settings, align)
     if isinstance(settings, HindsightSettings):
-        return FamilyHindsightPolicy(constants, pools, settings)
+        return FamilyHindsightPolicy(constants, pools, settings, align)
     if isinstance(settings, MpcSettings):
-        return FamilyMpcPolicy(constants, pools, settings)
+        return FamilyMpcPolicy(constants, pools, settings, align)
     raise TypeError(f"family planner: settings must be MpcSettings or HindsightSettings, got {type(settings).__name__}")
 
 
@@ -302,7 +317,8 @@ def _bootstrap_mean(values: np.ndarray, rng: np.random.Generator, resamples: int
 
 
 def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, settings,
-                       resamples: int = 2000, log=print, continuations: str | None = None) -> dict:
+                       resamples: int = 2000, log=print, continuations: str | None = None,
+                       align: str = "day-of-year") -> dict:
     """Run a planner (``settings``: :class:`MpcSettings` or ``HindsightSettings``; the summary's keys say
     ``mpc`` for either) on ``set_name`` of an evaluation ``table`` (``crop-sim evaluate --task``'s table.json) with
     that evaluation's terms, and compare it with the table's oracle and rule on the same seasons (USD/ha);
@@ -321,7 +337,7 @@ def compare_with_table(table: dict, set_name: str, seasons: np.ndarray | None, s
     terms = {name: np.asarray(values, dtype=float)[index] for name, values in entry["terms"].items()}
     generator, source = continuation_source(task, evaluation_set, continuations)
     pools = continuation_pool(source, settings.scenarios)
-    mpc = planner(TaskConstants.of_scenario(evaluation_set.scenario), pools, settings)
+    mpc = planner(TaskConstants.of_scenario(evaluation_set.scenario), pools, settings, align)
     began = time.perf_counter()
     mpc_returns = run_episodes(mpc, evaluation_set.scenario, np.asarray(entry["seasons"])[index], seed=0,
                                terms=terms).episode_return
@@ -400,6 +416,9 @@ def main(argv=None) -> int:
                              "the built-in scenario CLIMATE-generated (a site's generator, e.g. gainesville, or a "
                              "delta-changed climate, e.g. benton-hot-arid-sunny) (default: the set's own site, e.g. "
                              "maricopa on maricopa-generated)")
+    parser.add_argument("--align", choices=ALIGNMENTS, default="day-of-year",
+                        help="read a continuation's weather on the same days of the year as the season's (default) "
+                             "or on the same days after sowing (for a climate sown on another date)")
     parser.add_argument("--out", help="write the summary and per-season rows here (JSON)")
     parser.add_argument("--paired", nargs=2, metavar=("BASE", "OTHER"),
                         help="run nothing: compare two --out files of one task and set, season by season")
@@ -424,7 +443,8 @@ def main(argv=None) -> int:
                 from crop_agent_ros.learning.evaluate_task import table_set
                 continuation_source(get_scenario(str(table["task"])), table_set(table, args.set)[1],
                                     args.continuations)
-            summary = compare_with_table(table, args.set, seasons, settings, continuations=args.continuations)
+            summary = compare_with_table(table, args.set, seasons, settings, continuations=args.continuations,
+                                         align=args.align)
     except (OSError, ValueError, KeyError) as error:
         print(f"family_mpc: {str(error).strip(chr(39))}", file=sys.stderr)
         return 2
