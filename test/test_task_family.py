@@ -396,6 +396,16 @@ def test_the_smaller_pivot_task_grows_benton_early_quotas_seasons_within_5_5_mm_
     assert np.all(obs_small[:, yesterday] == 5.5) and np.all(obs_large[:, yesterday] == 8.0)
 
 
+def test_climates_hot_holds_climates12s_four_hot_dry_parts_alone_with_their_seasons():
+    from crop_sim_ros.task.scenario import climates
+    hot, twelve = get_scenario("climates-hot-quota"), get_scenario("climates12-quota")
+    assert list(climates(hot)) == list(climates(twelve))[8:] and hot.n_seasons == 4000
+    assert (hot.economics, hot.limits, hot.noise) == (twelve.economics, twelve.limits, twelve.noise)
+    table_hot, table12 = core.scenario_table(hot), core.scenario_table(twelve)
+    for k in (0, 3999):  # the parts' own seasons, as climates12-quota holds them from position 8000 on
+        np.testing.assert_array_equal(table_hot.weather[k], table12.weather[8000 + k])
+
+
 def test_maricopa_sown_spread_sows_each_maricopa_season_on_its_own_day_from_february_7_to_march_31():
     from crop_sim_ros.weather.generator import generator_of_source
     table = core.scenario_table(get_scenario("maricopa-sown-spread-quota"))
@@ -410,7 +420,8 @@ def test_every_family_scenario_loads_and_steps():
     for name in ("benton-money", "benton-quota", "benton-capacity", "benton-sensing", "benton-blind",
                  "climates-quota", "climates3-quota", "benton-early-quota", "benton-early-pivot",
                  "climates4-quota", "benton-early-warm-quota", "climates6-quota", "maricopa-late-quota",
-                 "climates8-quota", "climates10-quota", "climates12-quota", "maricopa-sown-spread-quota"):
+                 "climates8-quota", "climates10-quota", "climates12-quota", "maricopa-sown-spread-quota",
+                 "climates-hot-quota"):
         env = IrrigationVectorEnv(4, name)
         obs, _ = env.reset(seed=0)
         obs, rewards, *_ = env.step(np.full(4, 5.0))

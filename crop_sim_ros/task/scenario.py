@@ -32,8 +32,9 @@ the base's fields and replaces those it names (``noise``, ``economics`` and ``li
 task family's scenarios (``benton-money``, ``benton-quota``, ``benton-capacity``, ``benton-sensing``,
 ``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``,
 ``climates8-quota``, ``climates10-quota``, ``climates12-quota``, ``climates-spread-quota``, ``benton-early-quota``,
-``benton-early-pivot``, ``benton-early-warm-quota``, ``maricopa-late-quota``, ``maricopa-sown-spread-quota``)
-derive from ``benton-generated`` this way; their terms are documented in :mod:`crop_sim_ros.task.terms`.
+``benton-early-pivot``, ``benton-early-warm-quota``, ``maricopa-late-quota``, ``maricopa-sown-spread-quota``,
+``climates-hot-quota``) derive from ``benton-generated`` this way; their terms are documented in
+:mod:`crop_sim_ros.task.terms`.
 
 File formats: ``agweathernet`` (AgWeatherNet daily CSV), ``dssat`` (DSSAT .WTH), ``csv`` (the plain daily CSV of
 ``crop_sim_ros.weather.csv_readers.read_plain_csv``).
