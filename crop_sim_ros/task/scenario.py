@@ -16,9 +16,10 @@ Weather sources (``weather.kind``):
   ``diurnal_range_degc`` (likewise) widens TMAX - TMIN, TMAX up and TMIN down by half each (``widened``);
   ``rain_factor`` (default 1, in [0, 3]) multiplies every wet day's rain (``rain_scaled``); ``radiation_factor``
   (default 1, in [0.5, 2]) every monthly mean and standard deviation of SRAD, each day still capped at clear-sky
-  radiation (clearer skies, ``brightened``). ``spread`` (instead of those) gives ranges from which every season draws its own warming, drying, rain factor and sowing delay after
-  ``sowing_date``, uniformly (``ClimateSpread``: ``spread: {warming_degc: [0, 8], sowing_delay_days: [0, 61]}``;
-  domain randomisation across climates). Needs no file.
+  radiation (clearer skies, ``brightened``). ``spread`` (instead of those) gives ranges from which every season
+  draws its own warming, drying, rain factor and sowing delay after ``sowing_date``, uniformly (``ClimateSpread``:
+  ``spread: {warming_degc: [0, 8], sowing_delay_days: [0, 61]}``; domain randomisation across climates). Needs
+  no file.
 - ``file``: one weather file (``path``, ``format``), the season starting on ``sowing_date``.
 - ``seasons``: several (file, format, sowing date) seasons; ``reset`` picks one (or the one asked for).
   A ``file`` or ``seasons`` source may name its site's ``climate``: the fitted generator of that site (what a
@@ -242,8 +243,8 @@ class WeatherSource:
     @property
     def generated_climate(self) -> str:
         """A generator source's climate: its generator, warmed, its diurnal range widened, dried, its radiation
-        and rain scaled as it says (``benton+4C+4DTR+8DPDx1.25Sx0.3R``), the name its seasons' source carries. ValueError for a spread source, whose
-        every season has its own (its source names it)."""
+        and rain scaled as it says (``benton+4C+4DTR+8DPDx1.25Sx0.3R``), the name its seasons' source carries.
+        ValueError for a spread source, whose every season has its own (its source names it)."""
         if self.spread is not None:
             raise ValueError(f"generator {self.generator!r} with a spread: each season draws its own climate (its "
                              "source names it); the source has no one climate")

@@ -354,8 +354,8 @@ def climate_name(generator: str, warming_degc: float = 0.0, drying_degc: float =
 
 
 def climate_parameters(climate: str) -> GeneratorParameters:
-    """The parameters of ``climate`` (``benton``, ``benton+4C``, ``benton+6C+8DPDx1.25Sx0.3R``: see :func:`climate_name`);
-    WeatherError naming the fitted generators for an unknown one."""
+    """The parameters of ``climate`` (``benton``, ``benton+4C``, ``benton+6C+8DPDx1.25Sx0.3R``: see
+    :func:`climate_name`); WeatherError naming the fitted generators for an unknown one."""
     match = _CLIMATE_NAME.fullmatch(str(climate))
     if match is None or match["generator"] not in GENERATOR_NAMES:
         raise WeatherError(f"no climate {climate!r}: a fitted generator ({', '.join(GENERATOR_NAMES)}), optionally "
