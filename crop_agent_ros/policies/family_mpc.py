@@ -124,14 +124,20 @@ def _day_of_year(context: SeasonContext) -> int:
 ALIGNMENTS = ("day-of-year", "sowing")
 
 
+def _checked_alignment(align: str) -> str:
+    """``align`` if it is one of :data:`ALIGNMENTS`, else ValueError naming them."""
+    if align not in ALIGNMENTS:
+        raise ValueError(f"family MPC: align must be one of {', '.join(ALIGNMENTS)}, got {align!r}")
+    return align
+
+
 def spliced(truth: SeasonContext, continuation: SeasonContext, known_days: int,
             align: str = "day-of-year") -> SeasonContext:
     """``truth``'s weather on days 0..known_days-1, then ``continuation``'s on the same days of the year (``align``
     "day-of-year") or the same days after sowing ("sowing"), its first or last day repeated outside it, over
     ``truth``'s length: what the controller plans on."""
-    if align not in ALIGNMENTS:
-        raise ValueError(f"family MPC: align must be one of {', '.join(ALIGNMENTS)}, got {align!r}")
-    offset = _day_of_year(truth) - _day_of_year(continuation) if align == "day-of-year" else 0
+    by_day_of_year = _checked_alignment(align) == "day-of-year"
+    offset = _day_of_year(truth) - _day_of_year(continuation) if by_day_of_year else 0
     days = np.arange(len(truth.rain_mm))
     source = np.clip(days + offset, 0, len(continuation.rain_mm) - 1)
     series = {}
@@ -152,9 +158,7 @@ class ContinuationPlanner(BasePolicy):
 
     def __init__(self, constants: TaskConstants, pools: dict[str, list[SeasonContext]], settings,
                  align: str = "day-of-year"):
-        if align not in ALIGNMENTS:
-            raise ValueError(f"{self.name}: align must be one of {', '.join(ALIGNMENTS)}, got {align!r}")
-        self.align = align
+        self.align = _checked_alignment(align)  # refused here, before any planning
         if not pools or min(len(pool) for pool in pools.values()) < settings.scenarios:
             raise ValueError(f"{self.name}: {settings.scenarios} scenarios need as many seasons in every pool, got "
                              f"{ {name: len(pool) for name, pool in pools.items()} }")

@@ -231,8 +231,7 @@ class WeatherSource:
         if self.kind != "generator" and (self._delta_changed or self.spread is not None):
             raise ValueError("weather.warming_degc, drying_degc, diurnal_range_degc, rain_factor, radiation_factor, "
                              "spread: only a 'generator' source can be warmed, dried, its diurnal range widened, its "
-                             f"rain scaled, brightened or spread, not "
-                             f"{self.kind!r}")
+                             f"rain scaled, brightened or spread, not {self.kind!r}")
 
     @property
     def _delta_changed(self) -> bool:
