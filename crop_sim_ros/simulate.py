@@ -26,8 +26,8 @@ MAX_FIELDS = 1000  # irrigation rates of one run (one field each)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--scenario", default="benton-generated",
-                        help=f"scenario name or YAML path (default benton-generated; built in: {', '.join(scenario_names())})")
+    parser.add_argument("--task", default="benton-generated",
+                        help=f"task name or scenario YAML path (default benton-generated; built in: {', '.join(scenario_names())})")
     parser.add_argument("--season", type=int, default=0, help="which season of the scenario (default 0)")
     parser.add_argument("--irrigation-mm", default="0,5,10",
                         help="comma-separated constant daily irrigation rates, mm/day, one field each (default 0,5,10)")
@@ -78,8 +78,8 @@ def run(args: argparse.Namespace) -> int:
     rates = _rates(args.irrigation_mm)
     if args.data_dir is not None and not Path(args.data_dir).is_dir():
         raise UsageError(f"--data-dir: {args.data_dir} is not a directory")
-    with user_input("--scenario"):
-        scenario = find_scenario(args.scenario, args.data_dir)
+    with user_input("--task"):
+        scenario = find_scenario(args.task, args.data_dir)
         seasons = scenario.load_seasons()
     if not 0 <= args.season < len(seasons):
         raise UsageError(f"--season: scenario {scenario.name!r} has seasons 0..{len(seasons) - 1}")

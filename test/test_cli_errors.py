@@ -95,16 +95,16 @@ def test_simulate_weather_errors_are_one_line_naming_file_and_line(tmp_path, kin
     weather = tmp_path / "weather.csv"
     weather.write_bytes(content)
     (tmp_path / "s.yaml").write_text(scenario_yaml(str(weather)))
-    done = run_crop_sim("simulate", "--scenario", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "out"),
+    done = run_crop_sim("simulate", "--task", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "out"),
                         cwd=tmp_path)
-    assert_one_line_usage_error(done, "simulate", "--scenario: ", str(weather), fragment)
+    assert_one_line_usage_error(done, "simulate", "--task: ", str(weather), fragment)
     assert not (tmp_path / "out").exists()  # refused before anything was written
 
 
 def test_simulate_takes_a_scenario_yaml_path(tmp_path):
     (tmp_path / "weather.csv").write_text("\n".join(weather_lines()) + "\n")
     (tmp_path / "s.yaml").write_text(scenario_yaml(str(tmp_path / "weather.csv")))
-    done = run_crop_sim("simulate", "--scenario", "s.yaml", "--irrigation-mm", "0,10", "--no-plot", "--out", "out",
+    done = run_crop_sim("simulate", "--task", "s.yaml", "--irrigation-mm", "0,10", "--no-plot", "--out", "out",
                         cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     fields = __import__("json").loads((tmp_path / "out" / "summary.json").read_text())["fields"]
@@ -127,13 +127,13 @@ def simulate_cases(tmp_path: Path) -> dict[str, tuple[list[str], tuple[str, ...]
     }
     for name, text in yamls.items():
         (tmp_path / name).write_text(text)
-    scenario = ["--scenario"]
+    scenario = ["--task"]
     return {
-        "unknown scenario": ([*scenario, "atlantis"], ("--scenario: unknown scenario 'atlantis'; known: ",)),
+        "unknown scenario": ([*scenario, "atlantis"], ("--task: unknown scenario 'atlantis'; known: ",)),
         "missing data directory": ([*scenario, "benton-2000", "--data-dir", str(tmp_path / "absent")],
                                    ("--data-dir: ", "absent is not a directory")),
         "data directory without the file": ([*scenario, "benton-2000", "--data-dir", str(tmp_path)],
-                                            ("--scenario: ", "benton_e_2000-04-01_2000-09-30.csv not found")),
+                                            ("--task: ", "benton_e_2000-04-01_2000-09-30.csv not found")),
         "output path is a file": (["--out", str(tmp_path / "a_file")], ("--out: ", "a_file is a file")),
         "oversized season": ([*scenario, str(tmp_path / "oversized.yaml")],
                              ("oversized.yaml: max_season_days: 20000 is not a whole number in 1..730",)),
