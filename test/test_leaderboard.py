@@ -1,0 +1,313 @@
+"""The generated leaderboard: evaluation summaries (crop_agent_ros.learning.summary) and ``crop-sim leaderboard``
+(crop_agent_ros.leaderboard). The committed page must be what the command writes from the committed summaries;
+every check on a changed tree runs on a copy under tmp_path."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+
+from crop_agent_ros import leaderboard as lb
+from crop_agent_ros.cli import main
+from crop_agent_ros.learning.summary import dumps, seed_command, summary, write_summary
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+# --- a small synthetic evaluation ------------------------------------------------------------------------
+
+def _row(policy, kind, group="", seeds="", timesteps="", ret=0.0, regret=0.0, ci=(0.0, 0.0), pct=0.0,
+         ratio=0.0, ratio_ci=(0.0, 0.0), wins=0.0, final=None, final_ci=(None, None)):
+    return {"set": "heldout-real", "role": "held-out real seasons", "policy": policy, "kind": kind, "group": group,
+            "runs": 2 if group else 1, "training_seeds": seeds, "seasons": 2, "noise_seeds": 3,
+            "timesteps": timesteps, "reference": "oracle", "return_usd_ha": ret, "return_ci_low": ret - 900,
+            "return_ci_high": ret + 900, "regret_usd_ha": regret, "regret_ci_low": ci[0], "regret_ci_high": ci[1],
+            "regret_pct_of_reference": pct, "regret_pct_ci_low": 0.0, "regret_pct_ci_high": 0.0,
+            "ratio_to_rule": ratio, "ratio_ci_low": ratio_ci[0], "ratio_ci_high": ratio_ci[1], "paired_wins": wins,
+            "paired_ties": 0.0, "above_reference": 0.0, "final_over_early": final,
+            "final_over_early_ci_low": final_ci[0], "final_over_early_ci_high": final_ci[1], "beats_rule": "",
+            "learning_is_real": "", "note": "a note the summary drops"}
+
+
+def synthetic_table(task: str = "benton-quota") -> dict:
+    """A table.json of one set (2 seasons x 3 noise seeds), the oracle, the rule and one ES group of two runs
+    with its 1 % checkpoint, in the layout crop-sim evaluate --task writes."""
+    rows = [
+        _row("oracle", "oracle", ret=16160.307639552719, ratio=0.0, wins=1.0),
+        _row("budget-rule", "rule", ret=15736.77, regret=423.5358066957, ci=(342.94, 518.249), pct=2.62083999,
+             ratio=1.0, ratio_ci=(1.0, 1.0)),
+        _row("es", "agent", "es", "0 1", "140229541 110202700", ret=15973.869, regret=186.43861635252043,
+             ci=(103.1499, 274.2501), pct=1.1536823463447423, ratio=0.4401956420332717,
+             ratio_ci=(0.23493836481273928, 0.6716), wins=0.984, final=0.42036929164769304,
+             final_ci=(0.1982578505729955, 0.78512)),
+        _row("es, 1 % checkpoint", "early", "es", "0 1", "1863654 1871497", ret=15717.0, regret=443.5, ci=(297, 591),
+             pct=2.74, ratio=1.047, ratio_ci=(0.72, 1.44), wins=0.344),
+    ]
+    return {
+        "task": task,
+        "command": f"crop-sim evaluate --task {task} --agents es=runs/{task}-es-s*",
+        "arguments": {"noise_seeds": 3},
+        "regret": "oracle return - policy return, USD/ha",
+        "seeds": {"far_weather_seed": 900001, "terms_seed_base": 4049, "noise_seeds": [0, 1, 2], "bootstrap_seed": 0,
+                  "bootstrap_resamples": 2000, "oracle_noise_seed": 0},
+        "rule": {"file": f"/somewhere/family_{task}.json", "tuned_now": False, "name": "budget-rule",
+                 "level_factor": 0.8699662333760666, "pace": None},
+        "agents": {"es": [{"directory": f"runs/{task}-es-s{seed}", "training_seed": seed,
+                           "checkpoints": [[0, f"runs/{task}-es-s{seed}/checkpoint_000000000.zip"]]} for seed in (0, 1)]},
+        "sets": [{"name": "heldout-real", "role": "held-out real seasons", "scenario": f"{task}@heldout",
+                  "seasons": [0, 1], "season_sources": ["a.csv", "b.csv"], "terms_seed": 4049,
+                  "terms": {"quota_mm": [260.5, 414.8]}, "oracle_returns_usd_ha": [18792.0, 13528.6],
+                  "oracle_plans": [{}, {}], "reference": "oracle", "returns_usd_ha": {"oracle": [[[1.0]]]},
+                  "returns_shape": "training runs x seasons x noise seeds", "rows": rows, "units_s": 8.0}],
+        "learning_curves": [{"group": "es", "timesteps": 0, "regret_usd_ha": 4803.2}],
+        "versions": {"python": "3.11.7", "numpy": "2.4.6"},
+        "wall_s": {"setup_s": 8.06, "units_s": 225.6, "total_s": 233.94},
+        "execution": {"units": 657, "unit_log": [{"seconds": 5.94}]},
+    }
+
+
+def run_records(task: str = "benton-quota") -> dict[str, dict]:
+    """The summary.json of each synthetic run, by directory (as crop-sim train --task writes them)."""
+    return {f"runs/{task}-es-s{seed}": {
+        "algorithm": "es", "seed": seed, "steps_run": 170_000_000 + seed, "training_wall_s": 500.0 + seed,
+        "total_wall_s": 510.04 + seed,
+        "command": f"crop-sim train --task {task} --algorithm es --seed {seed} --out runs/{task}-es-s{seed} "
+                   "--no-progress --timesteps 170000000"} for seed in (0, 1)}
+
+
+def test_summary_keeps_the_leaderboard_numbers_rounded_and_drops_the_rest():
+    result = summary(synthetic_table(), run_records())
+    assert result["task"] == "benton-quota" and result["format"] == 1
+    assert result["command"] == "crop-sim evaluate --task benton-quota --agents es=runs/benton-quota-es-s*"
+    assert result["rule"] == {"name": "budget-rule", "file": "family_benton-quota.json", "tuned_now": False,
+                              "parameters": {"level_factor": 0.869966, "pace": None}}
+    (evaluation_set,) = result["sets"]
+    assert {key: evaluation_set[key] for key in ("name", "seasons", "noise_seeds", "terms_seed",
+                                                 "oracle_return_usd_ha")} == {
+        "name": "heldout-real", "seasons": 2, "noise_seeds": 3, "terms_seed": 4049, "oracle_return_usd_ha": 16160.3}
+    rule, agent = evaluation_set["rows"]  # the oracle is the set's return; the 1 % checkpoint row is dropped
+    assert rule == {"policy": "budget-rule", "kind": "rule", "return_usd_ha": 15736.8, "regret_usd_ha": 423.5,
+                    "regret_ci_usd_ha": [342.9, 518.2], "regret_pct_of_reference": 2.621}
+    assert agent == {"policy": "es", "kind": "agent", "return_usd_ha": 15973.9, "regret_usd_ha": 186.4,
+                     "regret_ci_usd_ha": [103.1, 274.3], "regret_pct_of_reference": 1.154, "group": "es",
+                     "training_seeds": [0, 1], "ratio_to_rule": 0.44, "ratio_to_rule_ci": [0.235, 0.672],
+                     "paired_wins": 0.984, "final_over_1pct": 0.42, "final_over_1pct_ci": [0.198, 0.785]}
+    assert result["training"] == {"es": {
+        "algorithm": "es", "seeds": [0, 1], "timesteps_selected": [140229541, 110202700],
+        "steps_run": [170000000, 170000001], "wall_s": [510.0, 511.0],
+        "commands": ["crop-sim train --task benton-quota --algorithm es --seed {seed} --timesteps 170000000"]}}
+    assert result["evaluation_wall_s"] == 233.9
+    text = dumps(result)
+    assert json.loads(text) == result
+    for dropped in ("learning_curves", "execution", "unit_log", "oracle_plans", "season_sources", "note"):
+        assert dropped not in text
+
+
+def test_summary_without_run_records_has_no_training_cost():
+    training = summary(synthetic_table())["training"]["es"]
+    assert training["steps_run"] is None and training["wall_s"] is None and training["commands"] == []
+    assert training["timesteps_selected"] == [140229541, 110202700]
+
+
+def test_seed_command_puts_the_seed_placeholder_and_drops_run_only_flags():
+    assert (seed_command("crop-sim train --task t --seed 3 --out 'runs/a b-s3' --no-progress --imitate 'd/*.npz'", 3)
+            == "crop-sim train --task t --seed {seed} --imitate 'd/*.npz'")
+
+
+def test_write_summary_is_one_line_per_row_and_stable(tmp_path):
+    write_summary(tmp_path / "a.json", synthetic_table(), run_records())
+    write_summary(tmp_path / "b.json", synthetic_table(), run_records())
+    text = (tmp_path / "a.json").read_text()
+    assert text == (tmp_path / "b.json").read_text()
+    assert sum('"kind": "agent"' in line for line in text.splitlines()) == 1
+    assert len(text) < 5_000
+
+
+# --- a small leaderboard tree ----------------------------------------------------------------------------
+
+def small_config(task: str = "benton-quota") -> dict:
+    return {"stronger_rule": "A stronger rule exists (issue 33).", "tasks": [{
+        "task": task, "readme_sets": ["heldout-real"],
+        "headline": {"summary": f"{task}-es", "evaluate": f"crop-sim evaluate --task {task} --agents es=runs/x-s*",
+                     "train": {"es": {"command": f"crop-sim train --task {task} --algorithm es --seed {{seed}}",
+                                      "seeds": [0, 1]}}},
+        "variants": []}]}
+
+
+def small_tree(root: Path, config: dict | None = None, readme: str | None = "# Farm\n\n"
+               f"{lb.START}\nold rows\n{lb.END}\n\nmore text\n") -> Path:
+    (root / "results" / "summaries").mkdir(parents=True)
+    write_summary(root / "results" / "summaries" / "benton-quota-es.json", synthetic_table(), run_records())
+    (root / "results" / "leaderboard.yaml").write_text(yaml.safe_dump(config or small_config(), sort_keys=False))
+    if readme is not None:
+        (root / "README.md").write_text(readme)
+    return root
+
+
+def leaderboard(root: Path, *flags: str) -> int:
+    return main(["leaderboard", "--root", str(root), *flags])
+
+
+def test_the_command_writes_the_page_and_the_readme_block_and_then_checks_clean(tmp_path, capsys):
+    root = small_tree(tmp_path)
+    assert leaderboard(root, "--check") == 1  # nothing written yet
+    assert leaderboard(root) == 0
+    assert leaderboard(root, "--check") == 0
+    page = (root / "docs" / "leaderboard.md").read_text()
+    assert page.startswith("# Leaderboard\n\n> **Which rule the ratios are against.**")
+    assert "`budget-rule`" in page and "A stronger rule exists (issue 33)." in page
+    assert ("| **benton-quota-es** | es | 16,160 | 424 [343, 518] | 186 [103, 274] | 1.15 % | 0.44 [0.23, 0.67] "
+            "| 98 % | 0.42 [0.20, 0.79] | 170 M steps, 9 min |") in page
+    assert "`crop-sim train --task benton-quota --algorithm es --seed S`, S = 0, 1" in page
+    readme = (root / "README.md").read_text()
+    assert readme.startswith(f"# Farm\n\n{lb.START}\n") and readme.endswith(f"{lb.END}\n\nmore text\n")
+    assert "old rows" not in readme
+    assert "| benton-quota | heldout-real | 424 | es | 186 [103, 274] | 0.44 [0.23, 0.67] |" in readme
+
+
+@pytest.mark.parametrize("tamper, named", [
+    (lambda root: (root / "docs" / "leaderboard.md").write_text(
+        (root / "docs" / "leaderboard.md").read_text().replace("186 [103, 274]", "150 [103, 274]")),
+     "docs/leaderboard.md"),
+    (lambda root: (root / "README.md").write_text((root / "README.md").read_text().replace("| 424 |", "| 420 |")),
+     "README.md"),
+    (lambda root: (root / "results" / "summaries" / "benton-quota-es.json").write_text(
+        (root / "results" / "summaries" / "benton-quota-es.json").read_text().replace("186.4", "186.9")),
+     "docs/leaderboard.md and README.md"),
+])
+def test_check_fails_on_a_tampered_copy_naming_the_file(tmp_path, capsys, tamper, named):
+    root = small_tree(tmp_path)
+    assert leaderboard(root) == 0
+    before = {path: path.read_text() for path in (root / "docs" / "leaderboard.md", root / "README.md")}
+    tamper(root)
+    tampered = {path: path.read_text() for path in before}
+    capsys.readouterr()
+    assert leaderboard(root, "--check") == 1
+    error = capsys.readouterr().err
+    assert error == f"crop-sim leaderboard: {named} out of date; run crop-sim leaderboard\n"
+    assert {path: path.read_text() for path in before} == tampered  # --check writes nothing
+
+
+def test_a_readme_without_markers_is_left_alone(tmp_path, capsys):
+    root = small_tree(tmp_path, readme="# Farm\n\nno block here\n")
+    assert leaderboard(root) == 0
+    assert (root / "README.md").read_text() == "# Farm\n\nno block here\n"
+    assert "no <!-- leaderboard:start --> marker, left alone" in capsys.readouterr().out
+    assert leaderboard(root, "--check") == 0
+
+
+def _without(config: dict, *path) -> dict:
+    node = config
+    for key in path[:-1]:
+        node = node[key]
+    del node[path[-1]]
+    return config
+
+
+def _with(config: dict, value, *path) -> dict:
+    node = config
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    return config
+
+
+@pytest.mark.parametrize("config, message", [
+    (_with(small_config(), 3, "extra"), "results/leaderboard.yaml: extra: Extra inputs are not permitted"),
+    (_without(small_config(), "tasks", 0, "headline", "train"), "results/leaderboard.yaml: tasks.0.headline.train: "
+                                                                  "Field required"),
+    (_with(small_config(), "crop-sim train --task benton-quota --seed 0", "tasks", 0, "headline", "train", "es",
+           "command"), "tasks.0.headline.train.es.command: Value error, must be a `crop-sim train ...` command"),
+    (_with(small_config(), "../../etc/passwd", "tasks", 0, "headline", "summary"), "tasks.0.headline.summary: "),
+    (_with(small_config(), [0, 1, 2], "tasks", 0, "headline", "train", "es", "seeds"),
+     "benton-quota-es: train es: seeds [0, 1, 2]; the evaluated runs have [0, 1]"),
+    (_with(small_config(), {"es": {"command": "crop-sim train --seed {seed}", "seeds": [0, 1]},
+                            "ppo": {"command": "crop-sim train --seed {seed}", "seeds": [0, 1]}},
+           "tasks", 0, "headline", "train"), "train names groups ['es', 'ppo']; the summary has ['es']"),
+    (_with(small_config(), "climates-quota", "tasks", 0, "task"),
+     "results/summaries/benton-quota-es.json: an evaluation of 'benton-quota', listed under task 'climates-quota'"),
+    (_with(small_config(), ["far-benton"], "tasks", 0, "readme_sets"),
+     "benton-quota: readme_sets: 'far-benton' is not a set of benton-quota-es (heldout-real)"),
+    (_with(small_config(), [small_config()["tasks"][0]["headline"]], "tasks", 0, "variants"),
+     "summary 'benton-quota-es' is named more than once"),
+])
+def test_a_malformed_configuration_is_refused_with_one_line(tmp_path, capsys, config, message):
+    root = small_tree(tmp_path, config)
+    assert leaderboard(root) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("crop-sim leaderboard: ") and error.count("\n") == 1 and message in error
+    assert not (root / "docs").exists()
+
+
+def test_bad_yaml_and_unlisted_missing_or_oracle_less_summaries_are_refused_with_one_line(tmp_path, capsys):
+    root = small_tree(tmp_path / "syntax")
+    (root / "results" / "leaderboard.yaml").write_text("tasks: [unclosed\n")
+    assert leaderboard(root) == 2
+    assert capsys.readouterr().err.startswith("crop-sim leaderboard: results/leaderboard.yaml: ")
+
+    root = small_tree(tmp_path / "unlisted")
+    shutil.copy(root / "results" / "summaries" / "benton-quota-es.json", root / "results" / "summaries" / "extra.json")
+    assert leaderboard(root) == 2
+    assert "results/summaries/extra.json is in no task's headline or variants" in capsys.readouterr().err
+
+    root = small_tree(tmp_path / "missing")
+    (root / "results" / "summaries" / "benton-quota-es.json").unlink()
+    assert leaderboard(root) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("crop-sim leaderboard: results/summaries/benton-quota-es.json: ") and error.count("\n") == 1
+
+    root = small_tree(tmp_path / "no-oracle")
+    path = root / "results" / "summaries" / "benton-quota-es.json"
+    gaps = json.loads(path.read_text())
+    gaps["sets"][0].update(reference="best evaluated policy per (season, noise seed)", oracle_return_usd_ha=None)
+    path.write_text(dumps(gaps))
+    assert leaderboard(root) == 2
+    assert "set heldout-real was scored without the oracle (--no-oracle)" in capsys.readouterr().err
+
+    assert leaderboard(tmp_path / "nowhere") == 2
+    assert "results/leaderboard.yaml not found" in capsys.readouterr().err
+
+
+def test_a_readme_with_one_marker_is_refused(tmp_path, capsys):
+    root = small_tree(tmp_path, readme=f"# Farm\n{lb.START}\nno end\n")
+    assert leaderboard(root) == 2
+    assert "README.md: expected one" in capsys.readouterr().err
+
+
+# --- the committed leaderboard ---------------------------------------------------------------------------
+
+def test_the_committed_page_and_readme_block_are_what_the_command_writes():
+    written = lb.outputs(ROOT)
+    assert written[lb.PAGE] == (ROOT / lb.PAGE).read_text(encoding="utf-8"), \
+        "docs/leaderboard.md is out of date: run crop-sim leaderboard"
+    if lb.README in written:
+        assert written[lb.README] == (ROOT / lb.README).read_text(encoding="utf-8"), \
+            "README.md's leaderboard block is out of date: run crop-sim leaderboard"
+
+
+def test_every_committed_summary_is_small_and_has_a_row(tmp_path):
+    summaries = sorted((ROOT / lb.SUMMARIES).glob("*.json"))
+    assert summaries
+    page = (ROOT / lb.PAGE).read_text(encoding="utf-8")
+    for path in summaries:
+        assert path.stat().st_size < 40_000, path.name
+        assert f"| {path.stem} |" in page or f"| **{path.stem}** |" in page, path.name
+
+
+def test_check_passes_on_a_copy_of_the_tree_and_fails_once_a_summary_changes(tmp_path, capsys):
+    for part in (lb.CONFIG, lb.PAGE):
+        (tmp_path / part).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(ROOT / part, tmp_path / part)
+    shutil.copytree(ROOT / lb.SUMMARIES, tmp_path / lb.SUMMARIES)
+    assert leaderboard(tmp_path, "--check") == 0
+    first = sorted((tmp_path / lb.SUMMARIES).glob("*.json"))[0]
+    data = json.loads(first.read_text())
+    data["sets"][0]["rows"][0]["regret_usd_ha"] += 50.0
+    first.write_text(dumps(data) + "\n")
+    capsys.readouterr()
+    assert leaderboard(tmp_path, "--check") == 1
+    assert capsys.readouterr().err == "crop-sim leaderboard: docs/leaderboard.md out of date; run crop-sim leaderboard\n"
