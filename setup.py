@@ -15,7 +15,8 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(include=["crop_sim_ros", "crop_sim_ros.*", "crop_agent_ros", "crop_agent_ros.*"]),
-    package_data={"crop_agent_ros": ["policies/*.zip", "policies/*.json"],
+    package_data={"crop_agent_ros": ["policies/*.zip", "policies/*.json", "agents/*/*/model.zip",
+                                     "agents/*/*/model.json", "learning/hyperparams/*.yml"],
                   "crop_sim_ros": ["weather/*.json", "task/scenarios/*.yaml"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
@@ -27,7 +28,7 @@ setup(
         (f"lib/{PACKAGE}", ["scripts/sim_node", "scripts/agent_node"]),
     ],
     python_requires=">=3.11",
-    install_requires=["numpy", "gymnasium", "refet", "PyYAML", "matplotlib"],
+    install_requires=["numpy", "gymnasium", "refet", "PyYAML", "matplotlib", "pydantic>=2"],
     zip_safe=True,
     maintainer="Simulated farm team",
     maintainer_email="farm@example.org",

@@ -23,15 +23,15 @@ COMMANDS = {
     "validate": ("crop_sim_ros.validation.cli", "run the SIMPLE reference experiments and report RRMSE"),
     "fit-weather": ("crop_sim_ros.weather.fit", "fit the weather generator's parameters to observed files"),
     "bench": ("crop_sim_ros.bench", "benchmark the model and the environment (field-days per second)"),
-    "train": ("crop_agent_ros.learning.train", "train a PPO irrigation policy (Stable-Baselines3)"),
+    "train": ("crop_agent_ros.learning.train", "train an agent on a task: --task T --algorithm ppo|es|grpo (hyperparameters from YAML)"),
     "evaluate": ("crop_agent_ros.learning.evaluate", "evaluate policies on held-out seasons"),
     "tune-rule": ("crop_agent_ros.policies.family_tuning",
                   "tune a family task's water-budget rule on generated training seasons"),
-    "demonstrate": ("crop_agent_ros.learning.imitation",
-                    "record the causal MPC's irrigation on a family task's training seasons (for --imitate)"),
     "sweep": ("crop_agent_ros.scale.sweep", "training and evaluation sweeps on Ray Tune (local or a cluster)"),
     "sweep-bench": ("crop_agent_ros.scale.bench", "benchmark sweep trials per hour with 1 and with 2 CPUs"),
     "ros-bench": ("crop_agent_ros.ros.bench", "benchmark days per second through ROS 2 against bare rclpy"),
+    "leaderboard": ("crop_agent_ros.leaderboard",
+                    "write the results page and the README's excerpt from the committed evaluation summaries"),
 }
 
 

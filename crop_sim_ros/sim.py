@@ -30,7 +30,7 @@ from std_srvs.srv import Trigger
 from . import ros_interface as ri
 from .season_log import TERM_COLUMNS, SeasonLog, log_path_problem
 from .session import FarmSession
-from .sim_node import MODES, NODE_NAME, PARAMETERS, ParameterSpec
+from .sim_parameters import MODES, NODE_NAME, PARAMETERS, ParameterSpec
 from .task import IrrigationEnv, ObservationNoise, Scenario, get_scenario, load_scenario
 from .task.layout import PAPER, layout_of_size
 

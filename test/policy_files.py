@@ -34,17 +34,26 @@ def ppo_file(path: Path, observation_shape: tuple[int, ...], action_shape: tuple
     return path
 
 
-def tiny_task_training(out: Path, task: str, seed: int, *extra: str, timesteps: int = 512, n_envs: int = 4,
-                       net_arch: str = "8") -> dict:
-    """``crop-sim train --task`` with a tiny budget (``extra``: more arguments, e.g. ``--action residual``):
-    the training run's summary; its files go to ``out``."""
+# A tiny budget for each algorithm's tests: its recipe's settings that make a run take seconds.
+TINY = {"ppo": {"n_envs": 4, "n_steps": 64, "batch_size": 64, "n_epochs": 1, "eval_freq": 100_000},
+        "es": {"pairs": 3, "seasons": 3, "eval_freq": 100_000},
+        "grpo": {"groups": 3, "group_size": 4, "batch_size": 256, "n_epochs": 1, "eval_freq": 100_000}}
+
+
+def tiny_task_training(out: Path, task: str, seed: int, algorithm: str = "ppo", timesteps: int = 512,
+                       net_arch: tuple[int, ...] = (8,), **hyperparams) -> dict:
+    """``crop-sim train --task TASK --algorithm A`` with a tiny budget (``hyperparams``: more settings, e.g.
+    ``paw_filter=True``, over :data:`TINY`): the training run's summary; its files go to ``out``. A refused
+    setting raises UsageError (as the command's ``run`` does)."""
     import argparse
+    import json
     from crop_agent_ros.learning import train
-    from crop_agent_ros.learning.train_task import train_task
     parser = argparse.ArgumentParser()
     train.add_arguments(parser)
-    args = parser.parse_args(["--task", task, "--seed", str(seed), "--timesteps", str(timesteps), "--n-envs",
-                              str(n_envs), "--n-steps", "64", "--batch-size", "64", "--n-epochs", "1", "--eval-freq",
-                              "100000", "--validation-seasons", "2", "--net-arch", net_arch, "--no-progress",
-                              "--out", str(out), *extra])
-    return train_task(args)
+    settings = {**TINY[algorithm], "timesteps": timesteps, "validation_seasons": 2, "net_arch": list(net_arch),
+                **hyperparams}
+    argv = ["--task", task, "--algorithm", algorithm, "--seed", str(seed), "--out", str(out), "--no-progress"]
+    for key, value in settings.items():
+        argv += ["--hyperparams", f"{key}={json.dumps(value)}"]
+    train.run(parser.parse_args(argv))
+    return json.loads((out / "summary.json").read_text())

@@ -1,5 +1,5 @@
-"""The benchmarks' machine report (CPU model, load average, load during each figure) and the vector
-environment's single-core option. Speed targets are checked by the benchmark commands, not here."""
+"""The benchmarks' machine report (CPU model, load average, load during each figure: crop_sim_ros.throughput)
+and the vector environment's single-core option. Speed targets are checked by the benchmark commands, not here."""
 
 import os
 from pathlib import Path
@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crop_sim_ros import bench
+from crop_sim_ros import throughput
 from crop_agent_ros.cli import main
 
 
@@ -17,15 +17,15 @@ def test_busy_seconds_per_cpu_from_proc_stat_text():
             "cpu0 200 10 60 2000 30 5 3 2 0 0\n"  # busy: user nice system irq softirq, not idle, iowait, steal
             "cpu1 100 0 40 3000 10 1 1 7 0 0\n"
             "intr 12345 0 0\nctxt 999\n")
-    busy, stolen = bench._busy_s_per_cpu(text)
+    busy, stolen = throughput._busy_s_per_cpu(text)
     assert busy == pytest.approx([278 / ticks, 142 / ticks]) and stolen == pytest.approx(9 / ticks)
 
 
 def test_machine_load_subtracts_this_process_and_its_peers(monkeypatch):
     samples = iter([(10.0, ([100.0, 50.0], 3.0), 7.0),  # wall s, (busy s per CPU, stolen s), ours
                     (12.0, ([101.8, 51.0], 3.1), 8.2)])
-    monkeypatch.setattr(bench.MachineLoad, "_sample", lambda self: next(samples))
-    figures = bench.MachineLoad().figures()
+    monkeypatch.setattr(throughput.MachineLoad, "_sample", lambda self: next(samples))
+    figures = throughput.MachineLoad().figures()
     # over 2 s: CPU 0 busy 1.8 s, CPU 1 1.0 s; this process (and peers) 1.2 CPU s -> others 1.6 CPU s
     assert figures["wall_s"] == pytest.approx(2.0)
     assert figures["cpu_busy"] == pytest.approx([0.9, 0.5])
@@ -43,12 +43,12 @@ def test_cpu_seconds_of_a_peer_process_count_as_ours():
                              "sys.stdout.flush(); time.sleep(30)"], stdout=subprocess.PIPE)
     try:
         assert busy.stdout.read(4) == b"done"
-        assert bench.cpu_s_of(busy.pid) >= 0.5
+        assert throughput.cpu_s_of(busy.pid) >= 0.5
     finally:
         busy.kill()
         busy.wait()
     time.sleep(0.05)
-    assert bench.cpu_s_of(busy.pid) == 0.0  # gone
+    assert throughput.cpu_s_of(busy.pid) == 0.0  # gone
 
 
 def test_bench_prints_the_cpu_model_and_the_load(capsys):
@@ -136,13 +136,13 @@ def test_vector_env_numbers_are_those_from_before_its_speed_work(scenario, mode)
 def test_interleaved_rates_take_turns_and_keep_each_best(monkeypatch):
     calls = []
     clock = iter(np.arange(0.0, 100.0, 1.0))  # every clock reading 1 s after the one before
-    monkeypatch.setattr(bench.time, "perf_counter", lambda: next(clock))
-    monkeypatch.setattr(bench.time, "process_time", lambda: 0.5 * len(calls))  # 0.5 CPU s per call
-    rates = bench.interleaved_best_rates({"a": (lambda: calls.append("a"), 10.0),
+    monkeypatch.setattr(throughput.time, "perf_counter", lambda: next(clock))
+    monkeypatch.setattr(throughput.time, "process_time", lambda: 0.5 * len(calls))  # 0.5 CPU s per call
+    rates = throughput.interleaved_best_rates({"a": (lambda: calls.append("a"), 10.0),
                                           "b": (lambda: calls.append("b"), 30.0)}, repeats=3)
     assert calls == ["a", "b"] * 3
     # each run: wall readings one apart -> 1 s; CPU 0.5 s
-    assert rates["a"] == pytest.approx(bench.Rate(10.0, 20.0)) and rates["b"] == pytest.approx(bench.Rate(30.0, 60.0))
+    assert rates["a"] == pytest.approx(throughput.Rate(10.0, 20.0)) and rates["b"] == pytest.approx(throughput.Rate(30.0, 60.0))
 
 
 def test_bench_env_prints_the_one_cpu_floors_and_their_bound():

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from crop_agent_ros.learning import evaluate_task as et
+from crop_agent_ros.learning.evaluation_units import oracle_returns
 from crop_agent_ros.policies.family_tuning import tuned_rule
 from crop_agent_ros.policies.rollout import run_episodes
 from ray_support import LoopbackNamespace
@@ -138,7 +139,7 @@ def test_the_local_run_equals_each_policy_run_directly(local_and_cluster, agents
     assert saved["returns_usd_ha"]["ppo"] == finals
     assert saved["returns_usd_ha"]["ppo, 1 % checkpoint"] == earlies
     assert finals != earlies                                      # two different networks
-    oracle, plans = et.oracle_returns(heldout, terms)
+    oracle, plans = oracle_returns(heldout, terms)
     assert saved["oracle_returns_usd_ha"] == oracle.tolist()
     assert saved["oracle_plans"] == json.loads(json.dumps(plans))
 
@@ -150,7 +151,7 @@ def test_the_oracle_in_season_chunks_equals_the_oracle_on_the_whole_set():
     chunks = [u for u in units if u.policy == et.ORACLE]
     assert [(u.start, u.stop) for u in chunks] == [(0, 1), (1, 2)]
     results = [et.run_unit(u, far, terms, None) for u in chunks]
-    whole, plans = et.oracle_returns(far, terms)
+    whole, plans = oracle_returns(far, terms)
     assert np.concatenate([r.returns for r in results]).tolist() == whole.tolist()
     assert [p for r in results for p in r.plans] == plans
 

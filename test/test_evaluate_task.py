@@ -16,6 +16,7 @@ import pytest
 
 from crop_agent_ros.learning import evaluate_task as et
 from crop_sim_ros.usage import UsageError
+from policy_files import tiny_task_training
 
 TASK = "benton-quota"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -33,23 +34,16 @@ def rule_dir(tmp_path_factory):
     from crop_agent_ros.policies import family_tuning
     directory = tmp_path_factory.mktemp("rules")
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(family_tuning, "rule_file",
-                      lambda task, outlook=False: directory / f"family_{task}{'-outlook' if outlook else ''}.json")
+        patch.setattr(family_tuning, "rule_file", lambda task: directory / f"family_{task}.json")
         yield directory
 
 
 @pytest.fixture(scope="module")
 def trained_run(tmp_path_factory) -> Path:
     """One PPO run of the quota task, 2,048 steps, with its 1 % checkpoint and intermediate checkpoints."""
-    from crop_agent_ros.learning import train
-    from crop_agent_ros.learning.train_task import train_task
     out = tmp_path_factory.mktemp("runs") / f"{TASK}-ppo-s0"
-    parser = argparse.ArgumentParser()
-    train.add_arguments(parser)
-    args = parser.parse_args(["--task", TASK, "--seed", "0", "--timesteps", "2048", "--n-envs", "8", "--n-steps",
-                              "64", "--batch-size", "128", "--n-epochs", "2", "--eval-freq", "1024",
-                              "--validation-seasons", "4", "--net-arch", "16,16", "--no-progress", "--out", str(out)])
-    train_task(args)
+    tiny_task_training(out, TASK, 0, timesteps=2048, net_arch=(16, 16), n_envs=8, batch_size=128, n_epochs=2,
+                       eval_freq=1024, validation_seasons=4)
     return out
 
 

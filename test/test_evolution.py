@@ -83,11 +83,10 @@ def test_centred_ranks_and_the_antithetic_estimate_point_uphill():
     assert np.linalg.norm(theta - target) < 0.1 * np.linalg.norm(target)
 
 
-def _es(tmp_path, name: str, *extra: str):
+def _es(tmp_path, name: str):
     out = tmp_path / name
-    summary = tiny_task_training(out, "benton-quota", 1, "--algorithm", "es", "--es-pairs", "3", "--es-seasons", "3",
-                                 "--eval-freq", "40000", "--es-noise-std", "0.3", *extra, timesteps=120_000,
-                                 net_arch="16")
+    summary = tiny_task_training(out, "benton-quota", 1, "es", timesteps=120_000, net_arch=(16,), eval_freq=40_000,
+                                 noise_std=0.3)
     return summary, out
 
 
@@ -95,8 +94,9 @@ def test_a_tiny_es_run_improves_reproduces_and_loads_as_a_family_agent(tmp_path)
     summary, out = _es(tmp_path, "a")
     config = json.loads((out / "model.json").read_text())
     assert config["algorithm"] == "es" and summary["steps_run"] >= 120_000
-    assert config["hyper_parameters"] == {"learning_rate": 0.02, "final_learning_rate": 0.002, "es_pairs": 3,
-                                          "es_noise_std": 0.3, "es_seasons": 3}
+    assert config["hyper_parameters"] == {"timesteps": 120_000, "eval_freq": 40_000, "validation_seasons": 2,
+                                          "net_arch": [16], "learning_rate": 0.02, "final_learning_rate": 0.002,
+                                          "paw_filter": False, "pairs": 3, "noise_std": 0.3, "seasons": 3}
     import csv
     with open(out / "learning_curve.csv", newline="") as f:
         rows = list(csv.DictReader(f))
@@ -120,37 +120,11 @@ def test_a_tiny_es_run_improves_reproduces_and_loads_as_a_family_agent(tmp_path)
     np.testing.assert_array_equal(first.get(), second.get())
 
 
-def test_es_refuses_other_algorithms_options_and_out_of_range_settings(tmp_path):
+def test_es_refuses_settings_out_of_range_or_of_another_algorithm(tmp_path):
     from crop_sim_ros.usage import UsageError
-    with pytest.raises(UsageError, match="--sde, --critic-warmup: for PPO only, not --algorithm es"):
-        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "es", "--sde", "0", "--critic-warmup", "9")
-    with pytest.raises(UsageError, match="--imitate: for PPO and --algorithm es only, not --algorithm td3"):
-        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "td3", "--imitate", "x.npz")
-    with pytest.raises(UsageError, match="--action-noise: for --algorithm td3 only"):
-        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "es", "--action-noise", "0.1")
-    with pytest.raises(UsageError, match="--es-pairs, --es-seasons: for --algorithm es only"):
-        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--es-pairs", "4", "--es-seasons", "2")
-    with pytest.raises(UsageError, match=r"--es-pairs 0 \(1..1,000\)"):
-        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "es", "--es-pairs", "0")
-    with pytest.raises(UsageError, match=r"--es-noise-std -0.1 \(0..10\]"):
-        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "es", "--es-noise-std", "-0.1")
-    with pytest.raises(UsageError, match="--es-seasons 50: the training pool has 40 seasons"):
-        tiny_task_training(tmp_path / "x", "benton-quota", 0, "--algorithm", "es", "--es-seasons", "50",
-                           "--training-seasons", "40")
+    for settings, message in (({"pairs": 0}, "hyperparameter pairs 0: Input should be greater than or equal to 1"),
+                              ({"noise_std": -0.1}, "hyperparameter noise_std -0.1: Input should be greater than 0"),
+                              ({"n_steps": 64}, "hyperparameter n_steps 64: Extra inputs are not permitted")):
+        with pytest.raises(UsageError, match=message):
+            tiny_task_training(tmp_path / "x", "benton-quota", 0, "es", **settings)
     assert not (tmp_path / "x" / "model.zip").exists()
-
-
-def test_each_algorithm_fills_the_budget_options_not_given_with_its_own_recipe():
-    """`crop-sim train --task T --algorithm es` alone is the README's ES recipe; given values are kept."""
-    import argparse
-    from crop_agent_ros.learning import train
-    parser = argparse.ArgumentParser()
-    train.add_arguments(parser)
-    es = parser.parse_args(["--task", "benton-quota", "--algorithm", "es"])
-    train.fill_algorithm_defaults(es)
-    assert (es.timesteps, es.eval_freq, es.validation_seasons, es.net_arch, es.learning_rate,
-            es.final_learning_rate) == (170_000_000, 10_000_000, 32, "64,64", 0.02, 0.002)
-    ppo = parser.parse_args(["--task", "benton-quota", "--timesteps", "5000", "--net-arch", "16"])
-    train.fill_algorithm_defaults(ppo)
-    assert (ppo.timesteps, ppo.eval_freq, ppo.validation_seasons, ppo.net_arch, ppo.learning_rate,
-            ppo.final_learning_rate) == (5000, 250_000, 64, "16", 1e-4, 1e-5)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import tempfile
 from dataclasses import replace
@@ -10,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from crop_agent_ros.learning.agent import ACTION_SCALE_MM, History, LearnedPolicy, ObservationScaler, action_to_mm
+from crop_agent_ros.policies.learned import ACTION_SCALE_MM, History, LearnedPolicy, ObservationScaler, action_to_mm
 from crop_sim_ros.task.layout import EXTENDED
 from policy_files import tiny_task_training
 
@@ -42,18 +41,17 @@ def test_history_shifts_and_restarts_a_new_season():
     np.testing.assert_array_equal(third, [[1, 2, 3], [99, 99, 99]])
 
 
-def _train(tmp_path, *extra: str):
+def _train(tmp_path, **settings):
     out = tmp_path / "run"
-    return tiny_task_training(out, "benton-sensing", 3, *extra), out
+    return tiny_task_training(out, "benton-sensing", 3, **settings), out
 
 
-@pytest.mark.parametrize("extra, algorithm, history", [(("--history", "4"), "ppo", 4),
-                                                       (("--algorithm", "recurrent-ppo"), "recurrent-ppo", 1)])
-def test_tiny_training_writes_loadable_policies(tmp_path, monkeypatch, extra, algorithm, history):
+def test_tiny_training_writes_loadable_policies(tmp_path, monkeypatch):
+    algorithm, history = "ppo", 1
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(scratch))  # where SB3's default logger makes its folder
-    summary, out = _train(tmp_path, *extra)
+    summary, out = _train(tmp_path)
     assert not list(scratch.glob("SB3-*")), "training left an SB3 log folder in the temporary directory"
     assert summary["steps_run"] >= 512 and summary["algorithm"] == algorithm
     config = json.loads((out / "model.json").read_text())
@@ -77,11 +75,11 @@ def test_tiny_training_writes_loadable_policies(tmp_path, monkeypatch, extra, al
 
 
 def test_a_policy_file_with_other_spaces_is_refused_at_load(tmp_path):
-    summary, out = _train(tmp_path, "--history", "2")
+    summary, out = _train(tmp_path)
     config = json.loads((out / "model.json").read_text())
-    config["history"] = 3  # the network takes 2 x 29 values
+    config["history"] = 3  # the network takes 29 values
     (out / "model.json").write_text(json.dumps(config))
-    with pytest.raises(ValueError, match=r"the network takes \(58,\).*needs \(87,\)"):
+    with pytest.raises(ValueError, match=r"the network takes \(29,\).*needs \(87,\)"):
         LearnedPolicy(out / "model.zip")
     config["algorithm"] = "dqn"
     (out / "model.json").write_text(json.dumps(config))
@@ -89,130 +87,16 @@ def test_a_policy_file_with_other_spaces_is_refused_at_load(tmp_path):
         LearnedPolicy(out / "model.zip")
 
 
-def test_training_refuses_the_papers_task_and_family_options_without_a_task(tmp_path):
-    from crop_agent_ros.learning import train
-    from crop_agent_ros.learning.train_task import train_task
-    parser = argparse.ArgumentParser()
-    train.add_arguments(parser)
-    for task, message in (("benton-generated", "not a family task"),):
-        args = parser.parse_args(["--task", task, "--out", str(tmp_path / "x"), "--timesteps", "64"])
-        with pytest.raises(SystemExit, match=message):
-            train_task(args)
-    # the family agent's options on the paper's task (no --task) are refused, not ignored
-    from crop_sim_ros.usage import UsageError
-    for extra, flag in ((["--paw-filter"], "--paw-filter"), (["--history", "4"], "--history"),
-                        (["--imitate", "x.npz"], "--imitate"), (["--outlook"], "--outlook"),
-                        (["--training-seasons", "5000"], "--training-seasons"), (["--sde", "0"], "--sde"),
-                        (["--critic-warmup", "100"], "--critic-warmup"), (["--log-std-final", "-4"], "--log-std-final"),
-                        (["--critic-hindsight"], "--critic-hindsight"),
-                        (["--algorithm", "td3"], "--algorithm td3"), (["--gradient-steps", "4"], "--gradient-steps"),
-                        (["--algorithm", "es"], "--algorithm es"), (["--es-noise-std", "0.1"], "--es-noise-std")):
-        args = parser.parse_args(["--out", str(tmp_path / "x"), "--timesteps", "64", *extra])
-        with pytest.raises(UsageError, match=f"{flag}: with --task only"):
-            train.run(args)
-
-
-def test_a_larger_training_pool_extends_the_tasks_own_pool(tmp_path):
-    """--training-seasons N: N seasons drawn by the task's generator with its seed (the pool is drawn at once, so
-    it is another draw than the task's 1,000); refused for a mixture of pools and outside 1..10,000."""
-    from crop_agent_ros.learning.train_task import training_pool
-    from crop_sim_ros.task import IrrigationVectorEnv, get_scenario
-    from crop_sim_ros.usage import UsageError
-    task = get_scenario("benton-quota")
-    larger = training_pool(task, 1500)
-    assert larger.name == task.name and larger.n_seasons == 1500 and task.n_seasons == 1000
-    assert training_pool(task, None) is task
-    assert larger.weather == replace(task.weather, n_seasons=1500)
-    IrrigationVectorEnv(2, larger).reset(seed=1, options={"season": 1499})  # beyond the task's own pool
-    with pytest.raises(UsageError, match="--training-seasons: 'climates-quota' mixes"):
-        training_pool(get_scenario("climates-quota"), 2000)
-    for count in (0, 10_001):
-        with pytest.raises(UsageError, match=f"--training-seasons {count}: must be in 1..10,000"):
-            training_pool(task, count)
-    summary, out = _train(tmp_path, "--training-seasons", "40")
-    assert json.loads((out / "model.json").read_text())["training_seasons"] == 40
-
-
-def test_state_dependent_exploration_is_recorded_and_its_policy_acts_deterministically(tmp_path):
-    """--sde DAYS: gSDE with its noise weights redrawn every DAYS days (0: once per rollout); the saved policy's
-    actions are its mean, so two evaluations agree; a negative count is refused."""
-    from crop_agent_ros.learning.train_task import exploration
-    from crop_agent_ros.policies.rollout import run_episodes
-    from crop_sim_ros.usage import UsageError
-    assert exploration(None) == {} and exploration(0) == {"use_sde": True, "sde_sample_freq": -1}
-    assert exploration(8) == {"use_sde": True, "sde_sample_freq": 8}
-    with pytest.raises(UsageError, match="--sde -1: days between noise draws"):
-        exploration(-1)
-    summary, out = _train(tmp_path, "--sde", "4")
-    hyper = json.loads((out / "model.json").read_text())["hyper_parameters"]
-    assert hyper["use_sde"] is True and hyper["sde_sample_freq"] == 4
-    policy = LearnedPolicy(out / "model.zip")
-    first, second = (run_episodes(policy, "benton-sensing", np.arange(2), seed=0).episode_return for _ in range(2))
-    np.testing.assert_array_equal(first, second)
-
-
-def test_a_critic_warmup_moves_only_the_value_network(tmp_path):
-    """--critic-warmup STEPS: PPO's updates inside frozen_actor change the value network and leave the policy (and
-    its exploration scale) exactly as it was; afterwards every parameter learns again."""
-    import torch
-    from stable_baselines3 import PPO
-    from crop_agent_ros.learning.train_task import frozen_actor
-    model = PPO("MlpPolicy", "Pendulum-v1", n_steps=64, batch_size=32, n_epochs=2, seed=0, device="cpu",
-                policy_kwargs={"net_arch": [8]})
-    before = {k: v.clone() for k, v in model.policy.state_dict().items()}
-    with frozen_actor(model.policy):
-        model.learn(128)
-    after = model.policy.state_dict()
-    actor = [k for k in before if k.startswith(("mlp_extractor.policy_net", "action_net", "log_std"))]
-    critic = [k for k in before if k.startswith(("mlp_extractor.value_net", "value_net"))]
-    assert actor and critic
-    assert all(torch.equal(before[k], after[k]) for k in actor)
-    assert any(not torch.equal(before[k], after[k]) for k in critic)
-    assert all(p.requires_grad for p in model.policy.parameters())
-    summary, out = _train(tmp_path, "--critic-warmup", "256")
-    assert json.loads((out / "model.json").read_text())["critic_warmup_steps"] == 256
-    assert summary["steps_run"] >= 512
-    from crop_sim_ros.usage import UsageError
-    with pytest.raises(UsageError, match="--critic-warmup 512: steps in 0..--timesteps"):
-        _train(tmp_path, "--critic-warmup", "512")
-
-
-def test_an_annealed_exploration_follows_its_schedule_and_is_not_learned(tmp_path):
-    """--log-std-final: the log std is set at each rollout's start on the line from --log-std-init to the final
-    value (4 rollouts of 256 steps: -2, -2.5, -3, -3.5), never by the gradient; recorded in the policy file."""
-    import io
-    import zipfile
-    import torch
-
-    def log_std(path):
-        with zipfile.ZipFile(path) as archive:
-            return torch.load(io.BytesIO(archive.read("policy.pth")), weights_only=False)["log_std"]
-
-    summary, out = _train(tmp_path, "--sde", "0", "--log-std-init", "-2", "--log-std-final", "-4",
-                          "--timesteps", "1024")
-    assert json.loads((out / "model.json").read_text())["log_std_final"] == -4.0
-    assert torch.all(log_std(out / "final_model.zip") == -3.5)
-    checkpoints = sorted(out.glob("checkpoint_*.zip"))
-    assert torch.all(log_std(checkpoints[0]) == -2.0)
-
-
-def test_an_off_policy_td3_agent_trains_loads_and_refuses_ppo_options(tmp_path):
-    """--algorithm td3: a deterministic policy with its critic; the saved policy loads as a family agent and acts
-    the same twice; PPO's options are refused for it, and its own options for PPO."""
-    from crop_agent_ros.policies.rollout import run_episodes
-    from crop_sim_ros.usage import UsageError
-    summary, out = _train(tmp_path, "--algorithm", "td3", "--gradient-steps", "2", "--action-noise", "0.1")
-    config = json.loads((out / "model.json").read_text())
-    assert config["algorithm"] == "td3" and summary["steps_run"] >= 512
-    assert config["hyper_parameters"]["action_noise"] == 0.1 and config["hyper_parameters"]["gradient_steps"] == 2
-    assert "gae_lambda" not in config["hyper_parameters"]
-    policy = LearnedPolicy(out / "model.zip")
-    first, second = (run_episodes(policy, "benton-sensing", np.arange(2), seed=0).episode_return for _ in range(2))
-    np.testing.assert_array_equal(first, second)
-    with pytest.raises(UsageError, match="--sde, --critic-warmup: for PPO only, not --algorithm td3"):
-        _train(tmp_path, "--algorithm", "td3", "--sde", "0", "--critic-warmup", "100")
-    with pytest.raises(UsageError, match="--action-noise: for --algorithm td3 only"):
-        _train(tmp_path, "--action-noise", "0.3")
+def test_the_papers_task_trains_ppo_only_and_a_recipe_refuses_what_it_does_not_have(tmp_path, capsys):
+    from crop_agent_ros.cli import main
+    for argv, message in ((["--algorithm", "es"], "--algorithm es: for a family task only"),
+                          (["--task", "benton-quota", "--hyperparams", "history=4"],
+                           "hyperparameter history 4: Extra inputs are not permitted"),
+                          (["--task", "atlantis"], "--task atlantis: ")):
+        assert main(["train", *argv, "--out", str(tmp_path / "x")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("crop-sim train: ") and message in err and err.count("\n") == 1, err
+    assert not (tmp_path / "x").exists()
 
 
 def _sensing_season(fields: int = 6, days: int = 120):
@@ -255,11 +139,11 @@ def test_the_soil_water_filter_knowing_the_sensor_error_is_closer_to_the_truth_t
 
 def test_an_agent_with_the_soil_water_filter_sees_its_estimate_and_loads_with_it(tmp_path):
     from crop_agent_ros.policies.rollout import run_episodes
-    summary, out = _train(tmp_path, "--paw-filter", "--history", "2")
+    summary, out = _train(tmp_path, paw_filter=True)
     config = json.loads((out / "model.json").read_text())
     assert config["paw_filter"]["sensor_sd_mm"] == 10.0 and config["paw_filter"]["capacity_mm"] > 0
     policy = LearnedPolicy(out / "model.zip")
-    assert policy.interface.input_size == 2 * EXTENDED.size + 1
+    assert policy.interface.input_size == EXTENDED.size + 1
     assert policy.describe()["paw_filter"] == config["paw_filter"]
     episodes = run_episodes(policy, "benton-sensing", np.arange(2), seed=0)
     assert np.all(np.isfinite(episodes.episode_return))
@@ -277,18 +161,6 @@ def test_an_agent_with_the_soil_water_filter_sees_its_estimate_and_loads_with_it
         LearnedPolicy(out / "model.zip")
 
 
-def test_the_rule_with_a_soil_water_filter_is_measured_on_a_committed_table(capsys):
-    """The check behind the README's 'is the rule handicapped by the sensor?': on benton-sensing's committed
-    table the plain tuned rule reproduces the table's returns, and the filtered rule's regret is reported."""
-    from pathlib import Path
-    from crop_agent_ros.learning import filtered_rule
-    table = Path(__file__).resolve().parent.parent / "results/family/benton-sensing-expected4/table.json"
-    assert filtered_rule.main([str(table), "--sets", "heldout-real"]) == 0
-    out = capsys.readouterr().out
-    assert "heldout-real: rule regret 437.6 USD/ha; with a filter at 10 mm" in out
-    assert filtered_rule.main([str(table.parent / "missing.json")]) == 2
-
-
 def test_hidden_columns_scale_to_zero_and_round_trip_through_the_record():
     rng = np.random.default_rng(1)
     obs = rng.normal(5.0, 2.0, (200, EXTENDED.size))
@@ -303,29 +175,3 @@ def test_hidden_columns_scale_to_zero_and_round_trip_through_the_record():
     assert ObservationScaler.from_record(json.loads(json.dumps(scaler.record()))) == scaler
     with pytest.raises(KeyError, match="no observation column 'days'"):
         ObservationScaler(fitted.mean, fitted.std, ("days",))
-
-
-def test_an_agent_trained_with_hidden_columns_records_them_and_does_not_read_them(tmp_path):
-    from crop_sim_ros.usage import UsageError
-    with pytest.raises(UsageError, match="--hide days, sowing: no such observation column; columns: biomass_t_ha"):
-        _train(tmp_path / "bad", "--hide", "sowing,days_since_sowing,days")
-    assert not (tmp_path / "bad").exists()  # refused before any work
-    _, out = _train(tmp_path, "--hide", "season_days_left, days_since_sowing")
-    config = json.loads((out / "model.json").read_text())
-    assert config["scaler"]["hidden"] == ["days_since_sowing", "season_days_left"]  # layout order
-    policy = LearnedPolicy(out / "model.zip")
-    obs, _ = _sensing_season(fields=3, days=2)
-    moved = obs[1].copy()
-    moved[:, EXTENDED.index("days_since_sowing")] += 40.0
-    moved[:, EXTENDED.index("season_days_left")] -= 40.0
-    policy.reset()
-    policy.act(obs[0])
-    first = policy.act(obs[1])
-    policy.reset()
-    policy.act(obs[0])
-    np.testing.assert_array_equal(policy.act(moved), first)
-    changed = obs[1].copy()
-    changed[:, EXTENDED.index("thermal_time_degc_d")] += 400.0
-    policy.reset()
-    policy.act(obs[0])
-    assert not np.array_equal(policy.act(changed), first)  # a column it reads still moves its action

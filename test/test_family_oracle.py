@@ -12,10 +12,13 @@ from crop_agent_ros.policies import family_dp, family_oracle as fo
 from crop_agent_ros.policies.family import FarmFacts, WaterBudgetRule
 from crop_agent_ros.policies.rollout import contexts_with_terms, run_episodes, season_contexts
 from crop_sim_ros import model
-from crop_sim_ros.task import core, get_scenario
+from crop_sim_ros.task import get_scenario
 
 # A cheap search: steps 4, 2, 1 mm, few rounds per step (the tests check properties, not the last 0.1 %).
 CHEAP = {"first_step_mm": 4.0, "finest_step_mm": 1.0, "max_rounds_per_step": 6}
+# One field's terms: tuber price (USD/t), water cost (USD/mm), quota (mm).
+ONE_FIELD_TERMS = {"yield_value_per_t": np.array([1100.0]), "water_cost_per_mm": np.array([1.5]),
+                   "quota_mm": np.array([250.0])}
 
 
 @pytest.fixture(scope="module")
@@ -221,3 +224,50 @@ def test_value_tables_kept_day_terms_change_nothing(quota_task):
         value, tables = programme.value_tables(prices, rounding, day_terms=kept)
         np.testing.assert_array_equal(value, fresh_value)
         assert all((a is None and b is None) or np.array_equal(a, b) for a, b in zip(tables, fresh))
+
+
+def test_a_replan_keeps_the_frozen_days_and_named_starts_are_refused(quota_task):
+    # a causal planner re-plans in mid-season with the days already applied frozen (experiments/planners_mpc.py)
+    scenario, contexts = quota_task
+    problem = fo.field_problems(contexts_with_terms([contexts[0]], ONE_FIELD_TERMS), fo.TaskConstants.of_scenario(scenario))[0]
+    start = np.zeros(problem.days)
+    start[20:40] = 3.0  # 60 mm on days 20-39: a plan the search would change
+    frozen = replace(problem, frozen_days=30)
+    result = fo.plan_fields([frozen], starts=[[start]], first_step_mm=2.0, finest_step_mm=1.0)[0]
+    np.testing.assert_array_equal(result.schedule_mm[:30], start[:30])
+    assert not np.array_equal(result.schedule_mm[30:], start[30:])  # the free days were searched
+    assert result.schedule_mm.sum() <= 250.0
+    with pytest.raises(ValueError, match="frozen days need given start schedules"):
+        fo.plan_fields([frozen], starts=("family",))
+    with pytest.raises(ValueError, match="frozen_days .* must be in"):
+        replace(problem, frozen_days=problem.days + 1)
+
+
+def test_the_programme_restarted_in_mid_season_continues_its_own_plan(quota_task):
+    # the dynamic programme's forward plan from sowing, and the same plan restarted on day 60 from the state it
+    # reached with the quota it left: the same days after, and returns to go that add up (an error in the
+    # restart's state, quota or first day changes both)
+    scenario, contexts = quota_task
+    problem = fo.field_problems(contexts_with_terms([contexts[0]], ONE_FIELD_TERMS), fo.TaskConstants.of_scenario(scenario))[0]
+    programme = family_dp.SeasonProgramme(problem, 4.0, 80.0)
+    prices = problem.water_cost_per_mm + np.array([0.0, 15.0])
+    _, tables = programme.value_tables(prices, rounding=False)
+    whole, whole_returns = family_dp._forward_plans(programme, tables, prices, amounts=9)
+    _, later_tables = programme.value_tables(prices, rounding=False, first_day=61)
+    for k in range(2):
+        np.testing.assert_allclose(later_tables[61][k], tables[61][k], rtol=1e-12)
+        schedule = whole[:, k]
+        assert schedule[:60].sum() > 0 and schedule[60:].sum() > 0  # both parts irrigate
+        c, params = contexts[0], contexts[0].params
+        state, growth = model.initial_state(params), 0.0
+        for d in range(60):
+            before = state.biomass_kg_ha[0]
+            state, _ = model.step(params, state, c.weather_on(d), schedule[d:d + 1])
+            growth += programme.value_per_kg * (state.biomass_kg_ha[0] - before)
+        price_tables = [None if t is None else t[k:k + 1] for t in later_tables]
+        restarted, to_go = family_dp._forward_plans(programme, price_tables, prices[k:k + 1], amounts=9, first_day=60,
+                                                    state=state, quota_left_mm=problem.quota_mm - schedule[:60].sum())
+        np.testing.assert_array_equal(restarted[:60, 0], 0.0)
+        np.testing.assert_allclose(restarted[60:, 0], schedule[60:], atol=1e-9)
+        np.testing.assert_allclose(growth - problem.water_cost_per_mm * schedule[:60].sum() + to_go[0],
+                                   whole_returns[k], rtol=1e-9)

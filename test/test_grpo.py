@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from crop_agent_ros.learning.grpo import GRPO_DEFAULTS, group_advantages, group_seasons
+from crop_agent_ros.learning.grpo import group_advantages, group_seasons
 from policy_files import tiny_task_training
 
 
@@ -29,11 +29,9 @@ def test_groups_run_distinct_seasons_each_repeated_for_its_fields():
     assert np.all(per_group == per_group[:, :1]) and len(set(per_group[:, 0])) == 16
 
 
-def _train(tmp_path, *extra):
+def _train(tmp_path, **settings):
     out = tmp_path / "run"
-    return tiny_task_training(out, "benton-quota", 1, "--algorithm", "grpo", "--grpo-groups", "3",
-                              "--grpo-group-size", "4", "--timesteps", "2000", "--eval-freq", "1000",
-                              "--log-std-init", "-2", *extra), out
+    return tiny_task_training(out, "benton-quota", 1, "grpo", timesteps=2000, eval_freq=1000, **settings), out
 
 
 def test_a_tiny_grpo_run_shares_each_groups_season_and_terms_and_writes_loadable_policies(tmp_path, monkeypatch):
@@ -60,39 +58,26 @@ def test_a_tiny_grpo_run_shares_each_groups_season_and_terms_and_writes_loadable
     assert summary["algorithm"] == "grpo" and summary["steps_run"] >= 2000
     config = json.loads((out / "model.json").read_text())
     hyper = config["hyper_parameters"]
-    assert hyper["grpo_groups"] == 3 and hyper["grpo_group_size"] == 4 and hyper["log_std_init"] == -2.0
+    assert hyper["groups"] == 3 and hyper["group_size"] == 4 and hyper["log_std_init"] == -2.0
     policy = LearnedPolicy(out / "model.zip")  # the headline agent's container: 29 inputs, one action
     assert policy.model.observation_space.shape == (29,)
     early, final = (LearnedPolicy(out / name).model.policy.action_net.weight for name in ("early_model.zip",
                                                                                           "final_model.zip"))
     assert not torch.equal(early, final)  # the learner's actor was published into the files
     # the same seed gives the same run, bit for bit
-    again, out_again = tiny_task_training(tmp_path / "again", "benton-quota", 1, "--algorithm", "grpo",
-                                          "--grpo-groups", "3", "--grpo-group-size", "4", "--timesteps", "2000",
-                                          "--eval-freq", "1000", "--log-std-init", "-2"), tmp_path / "again"
+    again, out_again = _train(tmp_path / "again")
     first = LearnedPolicy(out / "final_model.zip").model.policy.state_dict()
     second = LearnedPolicy(out_again / "final_model.zip").model.policy.state_dict()
     assert all(torch.equal(first[k], second[k]) for k in first)
 
 
-def test_grpo_fills_its_own_defaults_and_is_refused_with_what_it_does_not_have(tmp_path):
-    import argparse
-    from crop_agent_ros.learning import train
+def test_grpo_refuses_settings_out_of_range_or_of_another_algorithm(tmp_path):
     from crop_sim_ros.usage import UsageError
-    parser = argparse.ArgumentParser()
-    train.add_arguments(parser)
-    args = parser.parse_args(["--task", "benton-quota", "--algorithm", "grpo"])
-    train.fill_algorithm_defaults(args)
-    assert (args.timesteps, args.eval_freq, args.net_arch, args.learning_rate) == (12_000_000, 1_000_000, "64,64", 3e-4)
-    assert GRPO_DEFAULTS == {"groups": 16, "group_size": 8}
-    for extra, message in ((("--sde", "0"), "--sde: for PPO only, not --algorithm grpo"),
-                           (("--critic-hindsight",), "--critic-hindsight: for PPO only, not --algorithm grpo"),
-                           (("--imitate", "x.npz"), "--imitate: for PPO and --algorithm es only, not --algorithm grpo"),
-                           (("--grpo-group-size", "1"), "--grpo-group-size 1 \\(2..1,000\\): out of range"),
-                           (("--grpo-groups", "1001"), "--grpo-groups 1001 \\(1..1,000\\)")):
+    for settings, message in (({"group_size": 1}, "hyperparameter group_size 1: Input should be greater than or equal to 2"),
+                              ({"groups": 1001}, "hyperparameter groups 1001: Input should be less than or equal to 1000"),
+                              ({"gae_lambda": 0.9}, "hyperparameter gae_lambda 0.9: Extra inputs are not permitted")):
         with pytest.raises(UsageError, match=message):
-            _train(tmp_path, *extra)
-    with pytest.raises(UsageError, match="--grpo-groups 40: the training pool has 30 seasons"):
-        _train(tmp_path, "--grpo-groups", "40", "--training-seasons", "30")
-    with pytest.raises(UsageError, match="--grpo-groups: for --algorithm grpo only"):
-        tiny_task_training(tmp_path / "ppo", "benton-quota", 1, "--grpo-groups", "4")
+            _train(tmp_path, **settings)
+    with pytest.raises(UsageError, match="hyperparameter groups 4: Extra inputs are not permitted"):
+        tiny_task_training(tmp_path / "ppo", "benton-quota", 1, "ppo", groups=4)
+    assert not (tmp_path / "run").exists() and not (tmp_path / "ppo").exists()

@@ -1,7 +1,7 @@
 """The agent node over ROS 2: reacting to the simulator's observations (someone else steps), driving
 seasons, stopping cleanly on SIGTERM or SIGINT whenever they land, refusing a policy file made for other
 spaces, honouring its timeout, leaving the simulator's parameters alone; and the README's main job
-(``python -m crop_agent_ros.ros.farm``: sim + agent processes grow a season)."""
+(``python -m crop_agent_ros.ros.farm``: sim + agent processes grow a season, also with a shipped agent)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ import subprocess
 import sys
 import time
 import uuid
+from pathlib import Path
 
 import pytest
 
@@ -74,53 +75,61 @@ def test_run_farm_grows_a_season_over_ros(tmp_path, policy):
     assert log.with_suffix(".png").stat().st_size > 10_000  # the plot of the season
 
 
-def test_run_farm_grows_a_family_season_with_a_committed_agent(tmp_path):
-    """`crop-sim farm --policy agent`: a committed family agent (the imitation variant that also sees the
-    soil-water filter's estimate) drives a benton-sensing season over ROS; the agent node feeds the filter
-    from the readings it receives (a missing one as NaN), and the season stays within the farm's quota."""
+def tiny_filter_agent(folder: Path) -> Path:
+    """An untrained family agent (a tiny PPO network) that also sees the soil-water filter's PAW estimate: its
+    model.zip with the model.json beside it (identity scaling; 29 observation values + the estimate)."""
+    from crop_sim_ros.task.layout import EXTENDED
+
+    model = ppo_file(folder / "model.zip", (EXTENDED.size + 1,))
+    config = {"task": "benton-sensing", "algorithm": "ppo", "history": 1, "action_kind": "mm",
+              "scaler": {"mean": [0.0] * EXTENDED.size, "std": [1.0] * EXTENDED.size},
+              "paw_filter": {"capacity_mm": 120.0, "sensor_sd_mm": 10.0}}
+    (folder / "model.json").write_text(json.dumps(config))
+    return model
+
+
+def test_run_farm_grows_a_family_season_with_an_agent_file(tmp_path):
+    """`crop-sim farm --policy agent`: a family agent file that also sees the soil-water filter's estimate drives a
+    benton-sensing season over ROS; the agent node feeds the filter from the readings it receives (a missing one
+    as NaN), and the season stays within the farm's quota."""
     log = tmp_path / "season.csv"
-    agent = ros_support.REPO / "results/family/agents/benton-sensing-imitation-expected-filter-dagger2-s0/model.zip"
+    agent = tiny_filter_agent(tmp_path)
     done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--policy", "agent", "--policy-file",
-                           str(agent), "--scenario", "benton-sensing", "--json", "--no-plot", "--log", str(log),
+                           str(agent), "--task", "benton-sensing", "--json", "--no-plot", "--log", str(log),
                            "--domain-id", str(isolated_ros_env()["ROS_DOMAIN_ID"])],
                           env=isolated_ros_env(), capture_output=True, text=True, timeout=300, cwd=ros_support.REPO)
     assert done.returncode == 0, done.stdout + done.stderr
     (summary,) = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
-    assert summary["policy"] == "agent" and summary["matured"] and summary["yield_t_ha"] > 10
+    assert summary["policy"] == "agent" and summary["matured"]
     rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == summary["episode"]]
     assert len(rows) == summary["days"] and 0.0 < summary["irrigation_mm"] <= float(rows[0]["term_quota_mm"]) + 1e-6
     assert any(float(r["obs_paw_observed"]) == 0.0 for r in rows)  # the agent met missing readings
 
 
-@pytest.mark.parametrize("run, task", [("climates3-quota-imitation-outlook-dagger-s0", "climates3-quota"),
-                                       ("benton-quota-es-s0", "benton-quota")])
-def test_run_farm_grows_a_season_with_a_committed_agent_as_offline(tmp_path, run, task):
-    """Committed agents over ROS irrigate exactly as offline: the held-out-climate agent (it reads a climate
-    outlook; the agent node takes the season's climate and sowing date from the reset, here Benton sown March 1,
-    a climates3-quota part) and the evolution strategies agent (its network in a PPO policy file)."""
-    from crop_agent_ros.learning.agent import LearnedPolicy
+def test_farm_grows_a_season_with_the_shipped_agent_of_the_task_as_offline(tmp_path):
+    """`crop-sim farm --task benton-quota --policy es --seasons 1`: the agent node resolves ``es`` to the shipped
+    agent of the simulator's task and irrigates exactly as that agent does offline on the same season."""
+    from crop_agent_ros.policies import PolicyArguments, build_policy
     from crop_sim_ros.task import IrrigationEnv
 
-    agent = ros_support.REPO / f"results/family/agents/{run}/model.zip"
-    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--policy", "agent", "--policy-file",
-                           str(agent), "--scenario", task, "--json", "--no-plot",
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--task", "benton-quota", "--policy", "es",
+                           "--seasons", "1", "--json", "--no-plot",
                            "--domain-id", str(isolated_ros_env()["ROS_DOMAIN_ID"])],
                           env=isolated_ros_env(), capture_output=True, text=True, timeout=300, cwd=ros_support.REPO)
     assert done.returncode == 0, done.stdout + done.stderr
     (summary,) = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
-    policy = LearnedPolicy(agent)
-    env = IrrigationEnv(task)
+    assert (summary["policy"], summary["scenario"], summary["reward_unit"]) == ("es", "benton-quota", "USD/ha")
+    policy = build_policy("es", PolicyArguments(task="benton-quota"))
+    env = IrrigationEnv("benton-quota")
     policy.reset(None)
     obs, info = env.reset(seed=0)
-    policy.begin_field_season(info["weather_source"], info["date"])
     total, water, done_ = 0.0, 0.0, False
     while not done_:
         obs, reward, terminated, truncated, step = env.step(policy.act(obs))
         total, water, done_ = total + reward, water + step["irrigation_applied_mm"], terminated or truncated
-    if policy.outlook is not None:
-        assert policy.outlook.climates == ["benton"]
     assert summary["weather"] == info["weather_source"]
     assert summary["matured"] and (summary["return"], summary["irrigation_mm"]) == (total, water) and water > 0
+    assert summary["yield_t_ha"] == step["yield_t_ha"] > 10
 
 
 def catches_sigterm(pid: int) -> bool:

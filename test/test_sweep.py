@@ -43,7 +43,7 @@ def spec(**changes) -> SweepSpec:
 def test_configurations_are_the_grid_times_seeded_random_draws():
     raw = dict(grid={"learning-rate": [3e-4, 1e-4]}, samples=3, seeds=[0, 1],
                random={"log-std-init": {"uniform": [-1.5, -0.5]}, "n-epochs": {"randint": [5, 6]},
-                       "ent-coef": {"loguniform": [1e-4, 1e-2]}, "net-arch": {"choice": ["64,64", "32"]}})
+                       "ent-coef": {"loguniform": [1e-4, 1e-2]}, "net-arch": {"choice": [[64, 64], [32]]}})
     one, again, other = spec(**raw), spec(**raw), spec(**raw, **{"search-seed": 1})
     assert len(one.configurations) == 6
     assert one.configurations == again.configurations
@@ -51,7 +51,7 @@ def test_configurations_are_the_grid_times_seeded_random_draws():
     assert [c["learning-rate"] for c in one.configurations] == [3e-4] * 3 + [1e-4] * 3
     for c in one.configurations:
         assert -1.5 <= c["log-std-init"] <= -0.5 and 1e-4 <= c["ent-coef"] <= 1e-2
-        assert c["n-epochs"] in (5, 6) and isinstance(c["n-epochs"], int) and c["net-arch"] in ("64,64", "32")
+        assert c["n-epochs"] in (5, 6) and isinstance(c["n-epochs"], int) and c["net-arch"] in ([64, 64], [32])
     # 200 draws of a loguniform: about half below the geometric mean (a plain uniform would put ~1 % there)
     many = spec(random={"ent-coef": {"loguniform": [1e-4, 1e-2]}}, samples=200).configurations
     below = np.mean([c["ent-coef"] < 1e-3 for c in many])
@@ -61,7 +61,8 @@ def test_configurations_are_the_grid_times_seeded_random_draws():
     assert len(trials) == 12
     first = trials[0]
     assert first.train_argv[:4] == ("--task", "benton-quota", "--seed", "0")
-    assert "--learning-rate" in first.train_argv and "--no-progress" in first.train_argv
+    assert "learning_rate=0.0003" in first.train_argv and "--no-progress" in first.train_argv
+    assert first.train_argv[first.train_argv.index("learning_rate=0.0003") - 1] == "--hyperparams"
     assert first.evaluate_argv == ("--task", "benton-quota", "--sets", "heldout-real", "--noise-seeds", "1",
                                    "--bootstrap", "100", "--no-oracle", "--no-curves")
 
@@ -73,8 +74,9 @@ def test_configurations_are_the_grid_times_seeded_random_draws():
     ({"train": {"seed": 3}}, "train may not set seed"),
     ({"evaluate": {"agents": "x=y"}}, "evaluate may not set agents"),
     ({"evaluate": {"address": "auto", "cpus": 2}}, "evaluate may not set address, cpus"),
-    ({"train": {"timesteps": "many"}}, "argument --timesteps: invalid int value: 'many'"),
-    ({"train": {"time-steps": 100}}, "crop-sim train has no option --time-steps"),
+    ({"train": {"timesteps": "many"}}, "hyperparameter timesteps 'many': Input should be a valid integer"),
+    ({"train": {"time-steps": 100}}, "hyperparameter time_steps 100: Extra inputs are not permitted"),
+    ({"train": {"algorithm": "td3"}}, "argument --algorithm: invalid choice: 'td3'"),
     ({"evaluate": {"noise-seeds": [1, 2]}}, "has value [1, 2]; give a number"),
     ({"grid": {"learning-rate": 3e-4}}, "grid option 'learning-rate' must list its values"),
     ({"grid": {"timesteps": [1, 2]}}, "timesteps set in more than one of train / grid / random"),
@@ -96,7 +98,7 @@ def test_the_command_refuses_a_bad_configuration_or_address_in_one_line_before_s
     bad.write_text("tasks: [benton-quota]\ntrain: {timesteps: many}\n")
     good = tmp_path / "good.yaml"
     good.write_text(yaml.safe_dump({"tasks": ["benton-quota"], "train": TINY_TRAIN, "evaluate": TINY_EVALUATE}))
-    for argv, message in (([str(bad)], "invalid int value: 'many'"),
+    for argv, message in (([str(bad)], "timesteps 'many': Input should be a valid integer"),
                           ([str(tmp_path / "none.yaml")], "none.yaml"),
                           ([str(good), "--address", "not an address"], "neither 'auto' nor HOST:PORT"),
                           ([str(good), "--address", f"127.0.0.1:{_free_port()}"], "no Ray cluster answers there"),
@@ -135,8 +137,8 @@ def wait_for(predicate, timeout: float, what: str) -> None:
 
 @pytest.mark.slow
 def test_a_sweep_on_a_local_instance_writes_a_row_per_trial_finished_or_failed(tmp_path):
-    # history 400 is refused by `crop-sim train` itself (at run time: the parser takes any integer)
-    config = write_config(tmp_path, seeds=[0, 1], grid={"history": [1, 400]}, retries=0,
+    # a learning rate of 1e30 is a valid setting whose training diverges: its trials fail at run time
+    config = write_config(tmp_path, seeds=[0, 1], grid={"learning-rate": [3e-4, 1e30]}, retries=0,
                           evaluate={**TINY_EVALUATE, "oracle": True})
     out = tmp_path / "out"
     with LoopbackNamespace() as ns:
@@ -148,7 +150,7 @@ def test_a_sweep_on_a_local_instance_writes_a_row_per_trial_finished_or_failed(t
     assert list(table) == ["benton-quota-c00-s0", "benton-quota-c00-s1", "benton-quota-c01-s0", "benton-quota-c01-s1"]
     for key in ("benton-quota-c01-s0", "benton-quota-c01-s1"):
         assert table[key]["status"] == "failed"
-        assert "crop-sim train: --history 400: must be in 1..365" in table[key]["error"]
+        assert table[key]["error"], table[key]
         assert table[key]["attempts"] == "1"
     for key, seed in (("benton-quota-c00-s0", 0), ("benton-quota-c00-s1", 1)):
         row = table[key]
@@ -263,16 +265,16 @@ def test_the_scaling_benchmark_runs_a_valid_sweep_in_a_loopback_only_namespace()
     from crop_agent_ros.scale import bench
     planned = SweepSpec.from_dict(bench.sweep_config(4, 20000), "bench").trials()
     assert [t.seed for t in planned] == [0, 1, 2, 3]
-    assert "--no-oracle" in planned[0].evaluate_argv and "20000" in planned[0].train_argv
+    assert "--no-oracle" in planned[0].evaluate_argv and "timesteps=20000" in planned[0].train_argv
     seen = subprocess.run([*bench.loopback_prefix(), "ip", "-o", "link", "show", "up"], capture_output=True,
                           text=True, timeout=30)
     assert seen.returncode == 0 and [line.split(":")[1].strip() for line in seen.stdout.splitlines()] == ["lo"]
 
 
-def test_the_readme_example_configuration_plans_the_trials_it_says():
-    text = (ROOT / "README.md").read_text()
+def test_the_documented_example_configuration_plans_the_trials_it_says():
+    text = (ROOT / "docs" / "scale.md").read_text()
     block = next(b.split("```", 1)[0] for b in text.split("```yaml\n")[1:] if b.startswith("# quota-lr.yaml"))
-    planned = SweepSpec.from_dict(yaml.safe_load(block), "README quota-lr.yaml")
+    planned = SweepSpec.from_dict(yaml.safe_load(block), "docs/scale.md quota-lr.yaml")
     assert "2 tasks x (2 learning rates x 2 random draws) x 5 seeds = 40 trials" in text
     assert len(planned.configurations) == 4 and len(planned.trials()) == 40
 

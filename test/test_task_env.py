@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from gymnasium.vector import AutoresetMode
 
-from crop_sim_ros.task import (ENV_IDS, STATE_INFO_KEYS, STEP_INFO_KEYS, IrrigationEnv, IrrigationVectorEnv,
-                               ObservationNoise, get_scenario)
+from crop_sim_ros.task import (STATE_INFO_KEYS, STEP_INFO_KEYS, IrrigationEnv, IrrigationVectorEnv, ObservationNoise,
+                               get_scenario)
 from crop_sim_ros.task import core
 from crop_sim_ros.weather import read_agweathernet_csv
 from simple_reference import reference_of_table_season
@@ -51,12 +51,10 @@ def test_sb3_check_env_passes():
 
 
 def test_registered_ids_make_the_environment():
-    assert set(ENV_IDS) >= {"SimpleIrrigation-Generated-v0", "SimpleIrrigation-Benton2000-v0",
-                            "SimpleIrrigation-Paterson1992-v0", "SimpleIrrigation-HeldOut-v0"}
-    env = gym.make("SimpleIrrigation-Generated-v0")
+    env = gym.make("crop-sim/benton-generated-v0")
     obs, _ = env.reset(seed=0)
     assert env.observation_space.contains(obs) and env.action_space.shape == (1,)
-    vector = gym.make_vec("SimpleIrrigation-Generated-v0", num_envs=3)
+    vector = gym.make_vec("crop-sim/benton-generated-v0", num_envs=3)
     assert isinstance(vector.unwrapped, IrrigationVectorEnv)
     assert vector.reset(seed=0)[0].shape == (3, 20)
 

@@ -428,7 +428,7 @@ def test_every_family_scenario_loads_and_steps():
         assert obs.shape == (4, 29) and np.all(np.isfinite(obs)) and np.all(rewards < 0)
 
 
-@pytest.mark.parametrize("env_id", ["SimpleIrrigation-Quota-v0", "SimpleIrrigation-Sensing-v0"])
+@pytest.mark.parametrize("env_id", ["crop-sim/benton-quota-v0", "crop-sim/benton-sensing-v0"])
 def test_family_env_ids_pass_the_gymnasium_and_sb3_checkers(env_id):
     import gymnasium as gym
     from gymnasium.utils.env_checker import check_env

@@ -47,7 +47,8 @@ Without the oracle (``--no-oracle``) every "regret" is instead the **gap to the 
 (season, noise seed), and every output labels it so: it is not a regret.
 
 Outputs in ``--out`` (default ``runs/eval-<task>``): ``table.csv`` (one row per set and policy), ``table.json``
-(every number, the per-episode returns, the terms, the seeds, the command, package versions), ``table.md``
+(every number, the per-episode returns, the terms, the seeds, the command, package versions), ``summary.json``
+(its compact summary, what ``crop-sim leaderboard`` reads: :mod:`crop_agent_ros.learning.summary`), ``table.md``
 (one table per set), ``regret.png`` (regret with 95 % intervals per set), ``learning_curves.csv`` and
 ``learning_curves.png`` (each run's held-out real regret against environment steps, from every checkpoint in
 its directory: ``*.zip`` with a ``.json`` giving ``timesteps_at_save``).
@@ -71,15 +72,16 @@ import os
 import platform
 import subprocess
 import sys
-import tempfile
 import time
-import zipfile
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from crop_sim_ros.usage import UsageError, user_input
+
+from ..scale.evaluate_units import LOCAL_RAY, run_on_ray
+from .evaluation_units import ORACLE, AgentFile, Unit, UnitResult, load_agent, run_unit
 
 FAR_SEED = 900_001
 FAR_SEASONS = 50            # seasons of each far generated set (a pool's first seasons depend on its size)
@@ -91,13 +93,11 @@ MARICOPA = ("maricopa-generated", "maricopa-real")
 MARICOPA_LATE = ("maricopa-late-generated", "maricopa-late-real")
 MARICOPA_BLIND = "maricopa-march15-generated"
 RULE = "budget-rule"
-ORACLE = "oracle"
 KINDS = ("oracle", "rule", "agent", "early")
 MAX_NOISE_SEEDS = 1_000
 # The oracle plans a unit's seasons side by side (12 seasons at once: 1.2 s a season; one at a time: 3.3 s);
 # its plans and returns are the same however the seasons are chunked (test_distributed_evaluate checks it).
 ORACLE_SEASONS_PER_UNIT = 10
-LOCAL_RAY = "local"         # --address local: a private Ray instance on this machine
 MAX_RESAMPLES = 100_000
 CSV_COLUMNS = (
     "set", "role", "policy", "kind", "group", "runs", "training_seeds", "seasons", "noise_seeds", "timesteps",
@@ -115,9 +115,6 @@ def add_task_arguments(parser) -> None:
                         help="a group of trained runs (one directory per training seed, glob allowed, quote it), "
                              "e.g. 'ppo=runs/benton-quota-ppo-s*'; repeat for more groups")
     parser.add_argument("--noise-seeds", type=int, default=5, help="observation-noise seeds 0..K-1 per season")
-    parser.add_argument("--rule-outlook", action="store_true",
-                        help="the reference rule also budgets by the climate's normal demand (family_<task>-outlook"
-                             ".json, `crop-sim tune-rule --task T --outlook`): the knowledge of an agent's outlook")
     parser.add_argument("--far-seasons", type=int, default=FAR_SEASONS, help="seasons of each far generated set")
     parser.add_argument("--far-seed", type=int, default=FAR_SEED, help="weather seed of the far generated sets")
     parser.add_argument("--terms-seed", type=int, default=TERMS_SEED, help="seed of the drawn terms (set i: + i)")
@@ -259,7 +256,7 @@ def table_set(table: dict, set_name: str) -> tuple[dict, EvaluationSet]:
 
 def set_terms(evaluation_set: EvaluationSet, seed: int) -> dict:
     """One draw of the task's episode terms per season of the set (name -> (M,) array)."""
-    from ..policies.family_tuning import draw_terms
+    from ..policies.rollout import draw_terms
     return draw_terms(evaluation_set.scenario, evaluation_set.seasons, seed)
 
 
@@ -344,82 +341,23 @@ def agent_runs(specs: list[str], task_name: str) -> dict[str, list[AgentRun]]:
     return groups
 
 
-def load_agent(path: Path, name: str):
-    """A trained policy file as a policy (UsageError if it is missing, corrupt or made for other spaces)."""
-    from .agent import LearnedPolicy
-    with user_input(f"--agents {name}", (ValueError, KeyError, OSError, zipfile.BadZipFile)):
-        return LearnedPolicy(path, name=name)
-
-
 def the_rule(task, args, log):
     """The tuned rule of ``task`` and where it came from; tuned on training seasons and written if missing."""
     from ..policies import family_tuning
-    outlook = bool(getattr(args, "rule_outlook", False))
-    path = family_tuning.rule_file(task.name, outlook)
+    path = family_tuning.rule_file(task.name)
     if path.is_file():
         with user_input(f"tuned rule {path}", (ValueError, KeyError, TypeError, OSError)):
-            return family_tuning.tuned_rule(task.name, outlook=outlook), {"file": str(path), "tuned_now": False}
+            return family_tuning.tuned_rule(task.name), {"file": str(path), "tuned_now": False}
     seasons = family_tuning.training_seasons(task, 0, args.tune_seasons - 1)
     log(f"{path} is missing: tuning the rule now on {len(seasons)} generated training seasons "
         f"({args.tune_candidates} candidates, {args.tune_rounds} rounds: as `crop-sim tune-rule --task {task.name} "
-        f"--seasons 0..{args.tune_seasons - 1} --candidates {args.tune_candidates} --rounds {args.tune_rounds}"
-        f"{' --outlook' if outlook else ''}`) and writing it")
+        f"--seasons 0..{args.tune_seasons - 1} --candidates {args.tune_candidates} --rounds {args.tune_rounds}`) "
+        "and writing it")
     result = family_tuning.tune_rule(task, seasons, seed=0, candidates=args.tune_candidates,
-                                     rounds=args.tune_rounds, names=family_tuning.tuned_names(outlook), log=log)
-    family_tuning.write_tuned(task.name, result, outlook)
-    return family_tuning.tuned_rule(task.name, outlook=outlook), {"file": str(path), "tuned_now": True,
-                                                                  "tuned_on_seasons": seasons.tolist()}
-
-
-@dataclass(frozen=True)
-class AgentFile:
-    """A saved agent as data, as it goes to a Ray worker (a cluster's machines need not share a disk): the
-    bytes of its ``.zip`` and of the ``.json`` beside it; ``path``: where this process read them."""
-
-    path: str
-    name: str
-    model_zip: bytes
-    model_json: bytes
-
-    @classmethod
-    def read(cls, path: Path, name: str) -> "AgentFile":
-        with user_input(f"--agents {name}", (OSError,)):
-            return cls(str(path), name, path.read_bytes(), path.with_suffix(".json").read_bytes())
-
-    def policy(self, loaded: dict):
-        """The policy, loaded once per content into ``loaded`` (a worker keeps its agents for its next units)."""
-        digest = hashlib.sha256(self.model_json + b"\0" + self.model_zip).hexdigest()
-        if digest not in loaded:
-            with tempfile.TemporaryDirectory(prefix="crop-sim-agent-") as directory:
-                path = Path(directory) / "model.zip"
-                path.write_bytes(self.model_zip)
-                path.with_suffix(".json").write_bytes(self.model_json)
-                loaded[digest] = load_agent(path, self.name)
-        return loaded[digest]
-
-
-@dataclass(frozen=True)
-class Unit:
-    """One piece of the evaluation: policy ``policy`` (RULE, ORACLE or an agent file's path) on the seasons at
-    positions ``start:stop`` of set ``set_index`` with noise seed ``noise_seed`` (the oracle: 0). A policy's
-    unit is its whole set (one noise stream per batch); the oracle's, a chunk of it."""
-
-    set_index: int
-    policy: str
-    noise_seed: int
-    start: int
-    stop: int
-
-
-@dataclass(frozen=True)
-class UnitResult:
-    """A unit's returns ((stop - start,) USD/ha), the oracle's plan summaries (else None), its compute time
-    (s) and where it ran (None: this process; on Ray, :func:`crop_agent_ros.scale.cluster.this_node`)."""
-
-    returns: np.ndarray
-    plans: list | None
-    seconds: float
-    node: dict | None = None
+                                     rounds=args.tune_rounds, log=log)
+    family_tuning.write_tuned(task.name, result)
+    return family_tuning.tuned_rule(task.name), {"file": str(path), "tuned_now": True,
+                                                 "tuned_on_seasons": seasons.tolist()}
 
 
 def plan_units(sets: list[EvaluationSet], agent_keys: list[str], curve_keys: list[str], noise_seeds: int,
@@ -435,22 +373,6 @@ def plan_units(sets: list[EvaluationSet], agent_keys: list[str], curve_keys: lis
         keys = [RULE, *agent_keys, *(curve_keys if evaluation_set.name == HELD_OUT_REAL else [])]
         units += [Unit(index, key, seed, 0, m) for key in keys for seed in range(noise_seeds)]
     return units
-
-
-def run_unit(unit: Unit, evaluation_set: EvaluationSet, terms: dict, policy) -> UnitResult:
-    """The unit's returns: ``policy`` (None for the oracle) on its seasons and noise seed under the set's terms
-    (one draw per season, for the whole set). The one function of a unit, in this process or on a worker."""
-    from ..policies.rollout import run_episodes
-    started = time.perf_counter()
-    if unit.policy == ORACLE:
-        part = replace(evaluation_set, seasons=evaluation_set.seasons[unit.start:unit.stop])
-        returns, plans = oracle_returns(part, {name: values[unit.start:unit.stop] for name, values in terms.items()})
-    else:
-        if hasattr(policy, "site_climate"):  # an agent with a climate outlook, on real seasons
-            policy.site_climate = evaluation_set.site_climate
-        returns, plans = run_episodes(policy, evaluation_set.scenario, evaluation_set.seasons, seed=unit.noise_seed,
-                                      terms=terms).episode_return, None
-    return UnitResult(returns, plans, time.perf_counter() - started)
 
 
 def run_units_here(units: list[Unit], sets: list[EvaluationSet], terms: list[dict], policies: dict,
@@ -522,18 +444,6 @@ class OracleCache:
         temporary.write_text(json.dumps(_plain({"returns": result.returns, "plans": result.plans})),
                              encoding="utf-8")
         os.replace(temporary, path)
-
-
-def oracle_returns(evaluation_set: EvaluationSet, terms: dict) -> tuple[np.ndarray, list[dict]]:
-    """(M,) returns (USD/ha) of the hindsight oracle's plan of each season under its terms, run in the
-    environment with noise seed 0 (the plan does not read the observation), and each plan's summary."""
-    from ..policies.family_oracle import FamilyOraclePolicy
-    from ..policies.rollout import run_episodes
-    oracle = FamilyOraclePolicy.for_scenario(evaluation_set.scenario)
-    returns = run_episodes(oracle, evaluation_set.scenario, evaluation_set.seasons, seed=0, terms=terms).episode_return
-    plans = [{"planned_return_usd_ha": r.return_value, "potential_bound_usd_ha": r.potential_bound,
-              "water_mm": r.water_mm, "start": r.start, "last_gain_usd_ha": r.last_gain} for r in oracle.results]
-    return returns, plans
 
 
 # --- statistics ------------------------------------------------------------------------------------------
@@ -804,7 +714,6 @@ def run_task(args) -> dict:
         ran = run_units_here(to_run, sets, terms, policies, log)
         where, cluster_nodes = None, []
     else:
-        from ..scale.evaluate_units import run_on_ray
         sources = {RULE: rule, **{key: AgentFile.read(Path(key), name) for key, name in agent_names.items()}}
         ran, cluster = run_on_ray(to_run, sets, terms, sources, args.address, args.cpus, log)
         where, cluster_nodes = cluster.address, list(cluster.nodes)
@@ -928,7 +837,11 @@ def _log(message: str) -> None:
 # --- outputs --------------------------------------------------------------------------------------------
 
 def write_outputs(out: Path, result: dict, rows: list[dict], curves: list[dict]) -> None:
-    (out / "table.json").write_text(json.dumps(_plain(result), indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    from .summary import recorded_runs, write_summary
+    table = _plain(result)
+    (out / "table.json").write_text(json.dumps(table, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    # the leaderboard's compact copy (results/summaries/<evaluation>.json is this file)
+    write_summary(out / "summary.json", table, recorded_runs(table))
     with open(out / "table.csv", "w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
         writer.writeheader()

@@ -4,7 +4,7 @@ policy improved directly on its own return.
 PPO improves the return of its *noisy* policy; what is evaluated (and what a farm runs) is the mean action.
 On the quota tasks the two differ by more than PPO's gain over the tuned rule: a cloned planner's policy returns
 14,624 USD/ha on benton-quota's validation seasons with a little exploration noise and 15,269 without, and PPO
-moves it towards the first (README, "The headline agent, again"). Evolution strategies (Salimans et al. 2017,
+moves it towards the first. Evolution strategies (Salimans et al. 2017,
 "Evolution Strategies as a Scalable Alternative to Reinforcement Learning") perturb the network's *parameters*
 instead of its actions, so every candidate is a deterministic policy and the objective is the one evaluated:
 
@@ -16,13 +16,14 @@ instead of its actions, so every candidate is a deterministic policy and the obj
 - a candidate's fitness is its mean season return (the task's reward, USD/ha, unshaped: no critic, no
   discount, no bootstrap); fitnesses are replaced by centred ranks in [-0.5, 0.5];
 - the gradient estimate sum_i (rank(+i) - rank(-i)) eps_i / (2 n sigma) moves theta by Adam, with a step
-  size decaying linearly from ``--learning-rate`` to ``--final-learning-rate`` over ``--timesteps``.
+  size decaying linearly from ``learning_rate`` to ``final_learning_rate`` over ``timesteps``.
 
 The network, its observation and its action are the headline agent's (:mod:`.agent`: normalised raw
 observation, action in mm); it lives in a Stable-Baselines3 PPO policy (the container the policy file and
 :class:`~.agent.LearnedPolicy` load; its value network and exploration scale are unused). The environment steps
-a run uses (``--timesteps``) are field-days of every candidate's seasons. ES starts from a fresh network, or
-with ``--imitate`` from the network cloned from a planner's demonstrations (a labelled variant, as with PPO).
+a run uses (``timesteps``) are field-days of every candidate's seasons; ES starts from a fresh network. The
+settings (``pairs``, ``noise_std``, ``seasons``, learning rates) are the recipe of
+:mod:`.hyperparameters` (``hyperparams/es.yml``).
 """
 
 from __future__ import annotations
@@ -31,27 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..policies.outlook import ReadsOutlook
-from .agent import AgentInterface, action_to_mm
-
-ES_DEFAULTS = {"pairs": 32, "noise_std": 0.05, "seasons": 32}
-# setting -> (its option of `crop-sim train --task T --algorithm es`, type, metavar, what it is)
-ES_OPTIONS = {"pairs": ("--es-pairs", int, "N", "antithetic pairs of candidates per generation"),
-              "noise_std": ("--es-noise-std", float, "SIGMA", "the std of the parameter perturbations"),
-              "seasons": ("--es-seasons", int, "N", "training seasons every candidate of a generation runs (the same "
-                                                    "for all)")}
-
-
-def add_es_arguments(parser) -> None:
-    for key, (flag, kind, metavar, what) in ES_OPTIONS.items():
-        parser.add_argument(flag, type=kind, default=None, metavar=metavar,
-                            help=f"with --algorithm es: {what} (default {ES_DEFAULTS[key]:g})")
-
-
-def es_options_given(args) -> list[str]:
-    """The ES options given on the command line (their flags)."""
-    return [flag for key, (flag, *_) in ES_OPTIONS.items() if getattr(args, f"es_{key}", None) is not None]
-
+from .agent import AgentInterface
 
 class ActorVector:
     """The actor of a Stable-Baselines3 ``ActorCriticPolicy`` (``mlp_extractor.policy_net``: Linear and Tanh
@@ -101,15 +82,14 @@ def actor_outputs(layers: list[tuple[np.ndarray, np.ndarray]], inputs: np.ndarra
     return h[..., 0]
 
 
-class Population(ReadsOutlook):
+class Population:
     """P candidate actors on P x B fields: candidate p acts on fields p B .. (p + 1) B - 1, each field seen through
-    one :class:`~.agent.AgentInterface` (history, filter, rule, outlook per field, as a loaded policy's)."""
+    one :class:`~.agent.AgentInterface` (as a loaded policy's)."""
 
     def __init__(self, actor: ActorVector, thetas: np.ndarray, fields_each: int, interface: AgentInterface):
         self.layers = actor.unflatten(np.atleast_2d(thetas))
         self.fields_each = int(fields_each)
         self.interface = interface
-        self.outlook = interface.outlook
 
     def reset(self, seed: int | None = None) -> None:
         self.interface.reset()
@@ -166,14 +146,14 @@ class Adam:
 class CheckpointSchedule:
     """When a learner with its own loop (evolution strategies, :mod:`.grpo`) checkpoints: ``checkpoint(0, early=
     False)`` at once; then, after each iteration (:meth:`after`), ``publish()`` (the current actor into the policy
-    container) and ``checkpoint(steps, early=True)`` at the first iteration past 1 % of ``args.timesteps``, and
-    ``publish()`` and ``checkpoint(steps, early=False)`` every ``args.eval_freq`` field-days before the end (the
+    container) and ``checkpoint(steps, early=True)`` at the first iteration past 1 % of ``settings.timesteps``, and
+    ``publish()`` and ``checkpoint(steps, early=False)`` every ``settings.eval_freq`` field-days before the end (the
     caller checkpoints the end)."""
 
-    def __init__(self, args, checkpoint, publish):
-        self.timesteps, self.eval_freq = args.timesteps, args.eval_freq
-        self.early_at = max(1, args.timesteps // 100)
-        self.next_eval, self.early_done = args.eval_freq, False
+    def __init__(self, settings, checkpoint, publish):
+        self.timesteps, self.eval_freq = settings.timesteps, settings.eval_freq
+        self.early_at = max(1, settings.timesteps // 100)
+        self.next_eval, self.early_done = settings.eval_freq, False
         self.checkpoint, self.publish = checkpoint, publish
         checkpoint(0, early=False)
 
@@ -188,33 +168,24 @@ class CheckpointSchedule:
             self.checkpoint(steps, early=False)
 
 
-def es_settings(args) -> dict:
-    """The run's ES settings: the options given, else ES_DEFAULTS."""
-    given = {key: getattr(args, f"es_{key}") for key in ES_OPTIONS}
-    return {k: ES_DEFAULTS[k] if v is None else v for k, v in given.items()}
-
-
-def evolve(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
-    """Run ES on ``model``'s actor for ``args.timesteps`` field-days of ``scenario``'s training seasons (at most
+def evolve(model, interface: AgentInterface, scenario, settings, seed: int, checkpoint) -> int:
+    """Run ES on ``model``'s actor for ``settings.timesteps`` field-days of ``scenario``'s training seasons (at most
     one generation more); ``checkpoint(steps, early)`` is called with the current parameters in ``model`` at the
-    start, at the first generation past 1 % of the budget (``early`` True), and then every ``args.eval_freq``
+    start, at the first generation past 1 % of the budget (``early`` True), and then every ``settings.eval_freq``
     field-days; the caller checkpoints the end. Returns the field-days run, with the final parameters in
     ``model``."""
-    from ..policies.rollout import run_episodes, season_contexts
-    from ..policies.family_tuning import draw_terms
+    from ..policies.rollout import draw_terms, run_episodes
 
-    settings = es_settings(args)
-    pairs, noise_std, seasons_each = settings["pairs"], settings["noise_std"], settings["seasons"]
-    n_pool = scenario.n_seasons  # (train_task refused --es-seasons above it)
+    pairs, noise_std, seasons_each = settings.pairs, settings.noise_std, settings.seasons
+    n_pool = scenario.n_seasons  # (train_task refused more seasons per generation)
     actor = ActorVector(model.policy)
     theta = actor.get()
     adam = Adam(actor.size)
-    rng = np.random.default_rng([args.seed, 4_373])
-    contexts = season_contexts(scenario) if interface.outlook is not None else None
-    lr0, lr1 = args.learning_rate, args.final_learning_rate
+    rng = np.random.default_rng([seed, 4_373])
+    lr0, lr1 = settings.learning_rate, settings.final_learning_rate
     steps = 0
-    schedule = CheckpointSchedule(args, checkpoint, lambda: actor.set(theta))
-    while steps < args.timesteps:
+    schedule = CheckpointSchedule(settings, checkpoint, lambda: actor.set(theta))
+    while steps < settings.timesteps:
         seasons = rng.choice(n_pool, seasons_each, replace=False)
         terms = draw_terms(scenario, seasons, int(rng.integers(2 ** 31)))
         noise = rng.standard_normal((pairs, actor.size))
@@ -222,10 +193,9 @@ def evolve(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
         population = Population(actor, candidates, seasons_each, interface)
         episodes = run_episodes(population, scenario, np.tile(seasons, len(candidates)),
                                 seed=int(rng.integers(2 ** 31)),
-                                terms={k: np.tile(v, len(candidates)) for k, v in terms.items()},
-                                contexts=contexts)
+                                terms={k: np.tile(v, len(candidates)) for k, v in terms.items()})
         fitness = episodes.episode_return.reshape(len(candidates), seasons_each).mean(axis=1)
-        done = min(1.0, steps / args.timesteps)
+        done = min(1.0, steps / settings.timesteps)
         theta = theta + adam.step(antithetic_gradient(fitness, noise, noise_std), lr0 + (lr1 - lr0) * done)
         steps += int(episodes.days.sum())
         schedule.after(steps)

@@ -1,10 +1,9 @@
 """PPO with group-relative advantages for the family agent (``crop-sim train --task T --algorithm grpo``).
 
 Why: evolution strategies beat the tuned rule because they compare their candidates on the same seasons (common
-random numbers): without that, ES only ties the rule, as PPO does (README, "What makes ES work"). A season's
-return swings with its weather by thousands of USD/ha while one policy differs from another by tens; PPO's
-critic is meant to remove the weather's share from its advantages, and does not manage it, even when it is told
-the season's weather to come (``--critic-hindsight``). This learner gives PPO's update what ES has, in the manner
+random numbers): without that, ES only ties the rule, as PPO does. A season's return swings with its weather by
+thousands of USD/ha while one policy differs from another by tens; PPO's critic is meant to remove the weather's
+share from its advantages, and does not manage it, even when it is told the season's weather to come. This learner gives PPO's update what ES has, in the manner
 of GRPO (Shao et al. 2024, "DeepSeekMath"): no critic; fields in groups that share a season.
 
 Each iteration:
@@ -18,15 +17,15 @@ Each iteration:
 - a field's advantage, on every day of its season, is its season return (the task's reward, USD/ha: no shaping,
   discount or critic) minus its group's mean, divided by the iteration's standard deviation of those
   differences (:func:`group_advantages`);
-- PPO's clipped surrogate (clip ``--clip-range``) is minimised over ``--n-epochs`` epochs of minibatches of
-  ``--batch-size`` field-days with Adam (step size decaying linearly from ``--learning-rate`` to
-  ``--final-learning-rate``), gradient norm clipped at 0.5; only the policy (its network, action layer and
+- PPO's clipped surrogate (clip ``clip_range``) is minimised over ``n_epochs`` epochs of minibatches of
+  ``batch_size`` field-days with Adam (step size decaying linearly from ``learning_rate`` to
+  ``final_learning_rate``), gradient norm clipped at 0.5; only the policy (its network, action layer and
   exploration scale) learns, and only it is computed (the SB3 policy's value network is never evaluated).
 
 The network, its observation and its action are the headline agent's (:mod:`.agent`: normalised raw
 observation, action in mm, 64 x 64 by default). The run's policy files hold the deterministic actor in the
 standard PPO container (as evolution strategies' do): at each checkpoint the learner's actor is copied into it.
-``--timesteps`` counts field-days of every field's season.
+``timesteps`` counts field-days of every field's season.
 """
 
 from __future__ import annotations
@@ -36,28 +35,7 @@ import numpy as np
 from .agent import AgentInterface
 from .evolution import ActorVector, CheckpointSchedule
 
-GRPO_DEFAULTS = {"groups": 16, "group_size": 8}
-# setting -> (its option of `crop-sim train --task T --algorithm grpo`, metavar, what it is)
-GRPO_OPTIONS = {"groups": ("--grpo-groups", "N", "training seasons per iteration (one group of fields each)"),
-                "group_size": ("--grpo-group-size", "K", "fields per group, each with its own exploration (>= 2)")}
 MAX_GRADIENT_NORM = 0.5
-
-
-def add_grpo_arguments(parser) -> None:
-    for key, (flag, metavar, what) in GRPO_OPTIONS.items():
-        parser.add_argument(flag, type=int, default=None, metavar=metavar,
-                            help=f"with --algorithm grpo: {what} (default {GRPO_DEFAULTS[key]})")
-
-
-def grpo_options_given(args) -> list[str]:
-    """The GRPO options given on the command line (their flags)."""
-    return [flag for key, (flag, *_) in GRPO_OPTIONS.items() if getattr(args, f"grpo_{key}", None) is not None]
-
-
-def grpo_settings(args) -> dict:
-    """The run's GRPO settings: the options given, else GRPO_DEFAULTS."""
-    given = {key: getattr(args, f"grpo_{key}", None) for key in GRPO_OPTIONS}
-    return {k: GRPO_DEFAULTS[k] if v is None else v for k, v in given.items()}
 
 
 def group_advantages(returns: np.ndarray, group_size: int) -> np.ndarray:
@@ -74,38 +52,37 @@ def group_seasons(rng: np.random.Generator, pool_size: int, groups: int, group_s
     return np.repeat(rng.choice(pool_size, groups, replace=False), group_size)
 
 
-def grpo(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
-    """Run group-relative PPO (module docstring) on ``model``'s actor for ``args.timesteps`` field-days of
+def grpo(model, interface: AgentInterface, scenario, settings, seed: int, checkpoint) -> int:
+    """Run group-relative PPO (module docstring) on ``model``'s actor for ``settings.timesteps`` field-days of
     ``scenario``'s training seasons (at most one iteration more); ``checkpoint(steps, early)`` is called with the
     learner's actor in ``model`` at the start, at the first iteration past 1 % of the budget (``early`` True) and
-    then every ``args.eval_freq`` field-days; the caller checkpoints the end. Returns the field-days run, with the
+    then every ``settings.eval_freq`` field-days; the caller checkpoints the end. Returns the field-days run, with the
     final actor in ``model``."""
     import torch
     from gymnasium.vector import AutoresetMode
     from stable_baselines3 import PPO
     from crop_sim_ros.task import IrrigationVectorEnv
-    from ..policies.family_tuning import draw_terms
+    from ..policies.rollout import draw_terms
     from .agent import network_spaces
 
-    settings = grpo_settings(args)
-    groups, group_size = settings["groups"], settings["group_size"]
+    groups, group_size = settings.groups, settings.group_size
     n_fields = groups * group_size
-    net_arch = [int(x) for x in str(args.net_arch).split(",") if x.strip()]
-    learner = PPO("MlpPolicy", network_spaces(interface.input_size), use_sde=True, seed=args.seed, device="cpu",
-                  policy_kwargs={"net_arch": net_arch, "log_std_init": args.log_std_init}).policy
+    net_arch = list(settings.net_arch)
+    learner = PPO("MlpPolicy", network_spaces(interface.input_size), use_sde=True, seed=seed, device="cpu",
+                  policy_kwargs={"net_arch": net_arch, "log_std_init": settings.log_std_init}).policy
     ActorVector(learner).set(ActorVector(model.policy).get())  # start from the run's network
     actor = [*learner.mlp_extractor.policy_net.parameters(), *learner.action_net.parameters(), learner.log_std]
-    optimizer = torch.optim.Adam(actor, lr=args.learning_rate)
-    rng = np.random.default_rng([args.seed, 977])
+    optimizer = torch.optim.Adam(actor, lr=settings.learning_rate)
+    rng = np.random.default_rng([seed, 977])
     env = IrrigationVectorEnv(n_fields, scenario, autoreset_mode=AutoresetMode.NEXT_STEP)
 
     def publish() -> None:
         ActorVector(model.policy).set(ActorVector(learner).get())
 
     steps = 0
-    schedule = CheckpointSchedule(args, checkpoint, publish)
+    schedule = CheckpointSchedule(settings, checkpoint, publish)
 
-    while steps < args.timesteps:
+    while steps < settings.timesteps:
         seasons = group_seasons(rng, scenario.n_seasons, groups, group_size)
         terms = {k: np.repeat(v, group_size)
                  for k, v in draw_terms(scenario, seasons[::group_size], int(rng.integers(2 ** 31))).items()}
@@ -137,16 +114,16 @@ def grpo(model, interface: AgentInterface, scenario, args, checkpoint) -> int:
         inputs_seen = torch.as_tensor(np.concatenate(inputs_seen))
         actions_taken = torch.as_tensor(np.concatenate(actions_taken))
         old_log_prob = torch.as_tensor(np.concatenate(log_probs))
-        done = min(1.0, steps / args.timesteps)
+        done = min(1.0, steps / settings.timesteps)
         for group in optimizer.param_groups:
-            group["lr"] = args.learning_rate + (args.final_learning_rate - args.learning_rate) * done
-        for _ in range(args.n_epochs):
+            group["lr"] = settings.learning_rate + (settings.final_learning_rate - settings.learning_rate) * done
+        for _ in range(settings.n_epochs):
             order = torch.randperm(len(field))
-            for start in range(0, len(field), args.batch_size):
-                batch = order[start:start + args.batch_size]
+            for start in range(0, len(field), settings.batch_size):
+                batch = order[start:start + settings.batch_size]
                 log_prob = learner.get_distribution(inputs_seen[batch]).log_prob(actions_taken[batch])
                 ratio = torch.exp(log_prob - old_log_prob[batch])
-                clipped = torch.clamp(ratio, 1.0 - args.clip_range, 1.0 + args.clip_range)
+                clipped = torch.clamp(ratio, 1.0 - settings.clip_range, 1.0 + settings.clip_range)
                 loss = -torch.min(ratio * advantage[batch], clipped * advantage[batch]).mean()
                 optimizer.zero_grad()
                 loss.backward()

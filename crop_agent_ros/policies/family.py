@@ -22,11 +22,6 @@ the soil's water capacity, the cultivar's thermal time to maturity). Each day it
 6. **Weighs money**: it irrigates only when the yield the water protects is worth more than it costs, a
    test it makes by ``value_ratio``: no irrigation when water cost per mm > ``value_ratio`` x tuber price per t
    (both observed).
-7. **Budgets by the climate's normal demand** (``outlook_pace``, inf: not at all; the same knowledge as an
-   agent's climate outlook, :mod:`crop_agent_ros.policies.outlook`): it spends at most ``outlook_pace x
-   remaining x`` today's normal ET0 / the normal ET0 of the nominal season's days left, so that an allocation
-   follows the demand the site's climate normally brings. It then reads its fields' climates before the season
-   (``begin_season``; a real season's is ``site_climate``).
 
 All parameters may be arrays of shape (N,) to run N variants of the rule on N fields at once (the tuner's
 batched search). The tuned parameters of each task live in ``family_<task>.json`` beside this module,
@@ -43,7 +38,6 @@ from crop_sim_ros.model.simple import WATER_UPTAKE_COEFFICIENT  # ARID's water u
 from crop_sim_ros.task.layout import EXTENDED
 
 from .base import BasePolicy
-from .outlook import ClimateOutlook, ReadsOutlook
 
 _COL = {name: EXTENDED.index(name) for name in EXTENDED.names}
 
@@ -73,7 +67,6 @@ class RuleParameters:
     stop_tt_fraction: float = 1.5
     pace: float = np.inf
     value_ratio: float = np.inf
-    outlook_pace: float = np.inf
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
@@ -147,7 +140,7 @@ class SoilWaterFilter:
         return estimate
 
 
-class WaterBudgetRule(ReadsOutlook, BasePolicy):
+class WaterBudgetRule(BasePolicy):
     """The family's rule (see the module docstring). ``parameters``: a :class:`RuleParameters`, or a mapping
     of its fields to values or (N,) arrays."""
 
@@ -164,9 +157,6 @@ class WaterBudgetRule(ReadsOutlook, BasePolicy):
         self.facts = facts
         self.name = name
         self.soil_water = SoilWaterFilter(facts.capacity_mm)
-        self.outlook = None
-        if np.any(np.isfinite(self.parameters["outlook_pace"])):
-            self.outlook = ClimateOutlook()
 
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
@@ -186,10 +176,6 @@ class WaterBudgetRule(ReadsOutlook, BasePolicy):
         days_left = np.maximum(obs[:, _COL["season_days_left"]], 1.0)
         budget = np.where(np.isinf(p["pace"]), np.inf, np.where(np.isinf(p["pace"]), 0.0, p["pace"]) * left / days_left)
         amount = np.minimum(amount, budget)
-        if self.outlook is not None:
-            pace = np.where(np.isinf(p["outlook_pace"]), 0.0, p["outlook_pace"])
-            amount = np.where(np.isinf(p["outlook_pace"]), amount,
-                              np.minimum(amount, pace * left * self.outlook.share_today(obs)))
         too_dear = obs[:, _COL["water_cost_usd_per_mm"]] > p["value_ratio"] * obs[:, _COL["tuber_price_usd_per_t"]]
         amount = np.where(too_dear, 0.0, amount)
         return np.minimum(amount, obs[:, _COL["capacity_mm_per_day"]])

@@ -71,8 +71,7 @@ from crop_sim_ros.task.layout import EXTENDED
 
 from .base import DAYS_SINCE_SOWING, BasePolicy, SeasonContext
 from .family_dp import plan, upper_bound, water_input_for
-from .family_tuning import draw_terms
-from .rollout import contexts_with_terms, scenario_of, season_contexts
+from .rollout import contexts_with_terms, draw_terms, scenario_of, season_contexts, season_range
 
 TERM_NAMES = ("yield_value_per_t", "water_cost_per_mm", "quota_mm")  # core.EpisodeTerms, in SeasonContext.extra
 QUOTA_MARGIN_MM = 1e-6
@@ -100,7 +99,7 @@ class FieldProblem:
     applied (>= 0); ``quota_mm``: the season's allocation (inf: none); ``capacity_mm_per_day``: most applied
     in one day; ``event_cost``: reward units per day with water; ``frozen_days``: the schedule's first
     ``frozen_days`` days are already applied, and the search keeps them as the start schedule has them (a
-    re-plan in mid-season, :mod:`crop_agent_ros.policies.family_mpc`; such problems need given starts)."""
+    causal planner's re-plan in mid-season, experiments/planners_mpc.py; such problems need given starts)."""
 
     context: SeasonContext
     yield_value_per_t: float
@@ -747,7 +746,7 @@ class FamilyOraclePolicy(BasePolicy):
 
 def season_problems(scenario, seasons, seed: int = 0) -> list[FieldProblem]:
     """One problem per season index of ``scenario``, with one draw of the task's episode terms per season
-    (:func:`crop_agent_ros.policies.family_tuning.draw_terms`, seeded by ``seed``)."""
+    (:func:`crop_agent_ros.policies.rollout.draw_terms`, seeded by ``seed``)."""
     scenario = scenario_of(scenario)
     seasons = np.asarray(seasons, dtype=np.int64)
     contexts = season_contexts(scenario)
@@ -783,17 +782,6 @@ def report(problems: list[FieldProblem], bound_step_mm: float = 0.25, log=print)
             f"{r['uniform_vs_oracle_pct']:>10.3f}{r.get('bound_gap_pct', np.nan):>8.2f}{r['potential_gap_pct']:>8.2f}")
     log(f"oracle: {seconds:.2f} CPU s per field ({len(problems)} fields planned side by side)")
     return rows
-
-
-def season_range(text: str) -> np.ndarray:
-    low, _, high = text.partition("..")
-    try:
-        indices = np.arange(int(low), int(high) + 1) if high else np.array([int(low)])
-    except ValueError:
-        raise ValueError(f"--seasons: expected 'A..B' or one index, got {text!r}") from None
-    if indices.size == 0 or indices.min() < 0:
-        raise ValueError(f"--seasons: {text!r} names no season (non-negative, A <= B)")
-    return indices
 
 
 def main(argv=None) -> int:

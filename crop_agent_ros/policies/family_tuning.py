@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .family import FarmFacts, RuleParameters, WaterBudgetRule
-from .rollout import run_episodes
+from .rollout import draw_terms, run_episodes, season_range
 
 HERE = Path(__file__).resolve().parent
 # The search box: (low, high) of each parameter, and values outside the box a candidate may take ("never").
@@ -30,17 +30,9 @@ SEARCH_BOX = {
     "stop_tt_fraction": (0.5, 1.1),
     "pace": (0.3, 4.0),
     "value_ratio": (0.0, 0.05),
-    "outlook_pace": (0.3, 4.0),
 }
 NEVER = {"skip_rain_mm": 1e6, "start_tt_fraction": 0.0, "stop_tt_fraction": 10.0, "pace": np.inf,
-         "value_ratio": np.inf, "outlook_pace": np.inf}
-# The parameters a rule is tuned over; ``--outlook`` adds the climatological budget (outlook_pace).
-PLAIN_NAMES = tuple(name for name in RuleParameters.names() if name != "outlook_pace")
-
-
-def tuned_names(outlook: bool) -> tuple[str, ...]:
-    """The parameters a rule is tuned over: with ``outlook``, the climatological budget too."""
-    return PLAIN_NAMES + (("outlook_pace",) if outlook else ())
+         "value_ratio": np.inf}
 
 
 def training_seasons(scenario, first: int, last: int) -> np.ndarray:
@@ -60,18 +52,9 @@ def of_each_part(scenario, seasons: np.ndarray) -> np.ndarray:
     return np.concatenate([offset + np.asarray(seasons, dtype=np.int64) for offset in offsets[:-1]])
 
 
-def rule_file(task: str, outlook: bool = False) -> Path:
-    """``family_<task>.json``, or with ``outlook`` the rule that also budgets by the climate's normal demand,
-    ``family_<task>-outlook.json``."""
-    return HERE / f"family_{task}{'-outlook' if outlook else ''}.json"
-
-
-def draw_terms(scenario, seasons: np.ndarray, seed: int) -> dict:
-    """One draw of the task's episode terms per season (the same for every candidate)."""
-    from crop_sim_ros.task import core
-    params = core.task_params(scenario, len(seasons))
-    terms = core.draw_terms(params, np.random.default_rng([seed, 7919]), len(seasons))
-    return terms._asdict()
+def rule_file(task: str) -> Path:
+    """``family_<task>.json`` beside this module: the rule tuned for ``task``."""
+    return HERE / f"family_{task}.json"
 
 
 def candidate_returns(scenario, facts: FarmFacts, candidates: dict, seasons: np.ndarray, seed: int,
@@ -111,7 +94,7 @@ def _perturb(rng: np.random.Generator, best: list[dict], n: int, scale: float) -
 
 
 def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 192, rounds: int = 4,
-              names: tuple[str, ...] = PLAIN_NAMES, log=print) -> dict:
+              names: tuple[str, ...] = RuleParameters.names(), log=print) -> dict:
     """The best rule parameters on ``seasons`` of ``scenario`` (see the module docstring), with its score."""
     facts = FarmFacts.of_scenario(scenario)
     rng = np.random.default_rng(seed)
@@ -139,13 +122,11 @@ def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 19
             "facts": {"capacity_mm": facts.capacity_mm, "tsum_degc_d": facts.tsum_degc_d}}
 
 
-def tuned_rule(task: str, scenario=None, outlook: bool = False) -> WaterBudgetRule:
-    """The rule tuned for ``task`` (with ``outlook``: the one tuned with the climatological budget too);
-    FileNotFoundError says how to tune it."""
-    path = rule_file(task, outlook)
+def tuned_rule(task: str) -> WaterBudgetRule:
+    """The rule tuned for ``task``; FileNotFoundError says how to tune it."""
+    path = rule_file(task)
     if not path.exists():
-        raise FileNotFoundError(f"{path} is missing: run `crop-sim tune-rule --task {task}"
-                                f"{' --outlook' if outlook else ''}`")
+        raise FileNotFoundError(f"{path} is missing: run `crop-sim tune-rule --task {task}`")
     return rule_from_record(json.loads(path.read_text()))
 
 
@@ -166,8 +147,9 @@ def rule_from_record(record: dict) -> WaterBudgetRule:
     return WaterBudgetRule(FarmFacts(**record["facts"]), params, name="budget-rule")
 
 
-def write_tuned(task: str, result: dict, outlook: bool = False) -> Path:
-    path = rule_file(task, outlook)
+def write_tuned(task: str, result: dict) -> Path:
+    """Write :func:`tune_rule`'s ``result`` to :func:`rule_file` (an infinite parameter as null)."""
+    path = rule_file(task)
     plain = {**result, "parameters": _json_parameters(result["parameters"])}
     path.write_text(json.dumps(plain, indent=1) + "\n")
     return path
@@ -180,9 +162,6 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the search, the terms and the noise")
     parser.add_argument("--candidates", type=int, default=128, help="candidates per round (1..10000)")
     parser.add_argument("--rounds", type=int, default=4, help="local-search rounds after the random one (0..50)")
-    parser.add_argument("--outlook", action="store_true",
-                        help="also tune the budget by the climate's normal demand (outlook_pace: the knowledge of "
-                             "an agent's climate outlook); writes family_<task>-outlook.json")
 
 
 def run(args) -> int:
@@ -192,13 +171,11 @@ def run(args) -> int:
         scenario = get_scenario(args.task)
     if not scenario.is_family_task or scenario.weather.kind not in ("generator", "mixture"):
         raise UsageError(f"--task {args.task}: the rule is tuned on a family task's generated training seasons")
-    from .family_oracle import season_range
     with user_input(None, (ValueError,)):  # the messages name --seasons
         seasons = of_each_part(scenario, season_range(str(args.seasons)))
     if not (1 <= args.candidates <= 10_000 and 0 <= args.rounds <= 50):
         raise UsageError("--candidates must be in 1..10000 and --rounds in 0..50")
-    outlook = bool(getattr(args, "outlook", False))
-    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, tuned_names(outlook))
+    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds)
     print(f"tuned {args.task}: {result['parameters']} mean return {result['mean_return']:.2f}; "
-          f"wrote {write_tuned(args.task, result, outlook)}")
+          f"wrote {write_tuned(args.task, result)}")
     return 0

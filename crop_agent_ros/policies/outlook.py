@@ -1,6 +1,6 @@
-"""The climate outlook a family agent may see (``crop-sim train --task T --outlook``; a labelled feature of the
-imitation variant, like the soil-water filter): how the water left compares with the demand the site's climate
-normally brings over the next two months, and whether that demand is rising.
+"""The climate outlook a family agent may read (a research feature: an agent whose model.json names an
+``outlook``, trained by an earlier version's ``--outlook``): how the water left compares with the demand the
+site's climate normally brings over the next two months, and whether that demand is rising.
 
 A farm's controller knows its site's climate (its normals: weather networks and FAO-56 scheduling publish
 them); the observation does not carry it. The planner the students imitate knows it (its continuations are
@@ -22,8 +22,7 @@ temperature, humidity or rain delta-changed (``benton``, ``benton+4C``, ``benton
 seasons' source carries; :func:`crop_sim_ros.weather.generator.climate_parameters`). A generated season's
 climate is read from its source; a real season's (held-out Benton, Maricopa) is its site's generator, as its
 scenario names it (``weather.climate``; for Maricopa's three real seasons, a generator whose fit includes those
-years: that set's outlook is not independent of it; the 50 generated Maricopa seasons are). The water-budget
-rule's ``outlook_pace`` (:mod:`crop_agent_ros.policies.family`) reads the same normals (:func:`normal_share_today`).
+years: that set's outlook is not independent of it; the 50 generated Maricopa seasons are).
 """
 
 from __future__ import annotations
@@ -43,7 +42,6 @@ BEHIND_DAYS = 14
 FEATURES = ("water_vs_demand", "demand_trend")
 _DAY = EXTENDED.index("days_since_sowing")
 _QUOTA = EXTENDED.index("quota_remaining_mm")
-_DAYS_LEFT = EXTENDED.index("season_days_left")
 
 
 def normal_et0_mm(climate: str) -> np.ndarray:
@@ -138,20 +136,6 @@ def features(climates, sowing_days, obs: np.ndarray) -> np.ndarray:
     return out.astype(np.float32)
 
 
-def normal_share_today(climates, sowing_days, obs: np.ndarray) -> np.ndarray:
-    """(N,) today's normal ET0 / the normal ET0 of the days left of the nominal season (today included; the
-    observation's ``season_days_left``, at least 1): the share of the season's remaining demand that today
-    normally brings (the water-budget rule's climatological pace, ``outlook_pace``)."""
-    obs, groups = _by_climate(climates, sowing_days, obs)
-    days_left = np.maximum(obs[:, _DAYS_LEFT], 1.0).astype(int)
-    share = np.empty(len(obs))
-    for mine, normals, days in groups:
-        running = np.concatenate([[0.0], np.cumsum(np.tile(normals, 2))])  # a season is shorter than a year
-        first = days % 365
-        share[mine] = normals[first] / (running[first + days_left[mine]] - running[first])
-    return share
-
-
 class ClimateOutlook:
     """Each field's climate and sowing day for the season it is in, and its :func:`features`. Fields are set by
     :meth:`set_fields` (the training environment, from its seasons) or :meth:`begin_season` (a policy run, from
@@ -187,10 +171,6 @@ class ClimateOutlook:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         """The fields' :func:`features` today."""
         return features(self.climates, self.sowing_days, self._checked(obs))
-
-    def share_today(self, obs: np.ndarray) -> np.ndarray:
-        """The fields' :func:`normal_share_today`."""
-        return normal_share_today(self.climates, self.sowing_days, self._checked(obs))
 
 
 class ReadsOutlook:

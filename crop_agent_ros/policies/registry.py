@@ -12,11 +12,17 @@ name            what it is                                                      
 ``ppo``         a paper-task Stable-Baselines3 PPO policy file (default: the shipped) ``policy_file``      yes
 ``oracle``      the hindsight oracle (knows the season's weather: evaluation only)    -                    no
 ``budget-rule`` the water-budget rule tuned for a family task                         ``task``             yes
+``es``          the shipped evolution-strategies agent of a family task               ``task``             yes
 ``agent``       a family agent trained by ``crop-sim train --task``                   ``policy_file``,     yes
                                                                                       ``climate``
 =============== ===================================================================== ==================== ====
 
-"node": the agent node (and ``crop-sim farm``, the launch file) can run it. Short names for evaluation
+"node": the agent node (and ``crop-sim farm``, the launch file) can run it. A kind that reads ``task`` takes the
+simulator's scenario when the agent node is not given one.
+
+Shipped agents are package data, ``crop_agent_ros/agents/<task>/<policy>/model.zip`` (+ ``model.json``): the
+policy name (``es``) resolves to the agent of the current task (:func:`shipped_agent_file`); a task without one
+is refused in one line naming the tasks that have one (:func:`shipped_agent_tasks`). Short names for evaluation
 (:func:`make_policy`): a name above, ``constant<mm>`` and ``margin<mm>`` (e.g. ``constant10``, ``margin4``) and
 ``ppo:<path.zip>``. Heavy libraries (torch, stable_baselines3) load only when a learned policy is built.
 """
@@ -25,6 +31,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 from .base import BasePolicy
@@ -36,7 +43,7 @@ class PolicyArguments:
     policy_file: str = ""  # ppo: a PPO zip ('' = the shipped one); agent: a family agent's model.zip
     constant_mm: float = 10.0  # constant: mm per day
     margin_mm: float = 4.0  # margin: mm above ET0/0.096
-    task: str = ""  # budget-rule: the family task whose tuned rule
+    task: str = ""  # budget-rule, es: the family task whose tuned rule or shipped agent
     climate: str = ""  # agent: the site's climate (an agent with a climate outlook)
 
 
@@ -46,6 +53,7 @@ class PolicyKind:
     description: str
     build: Callable[[PolicyArguments], BasePolicy]
     node: bool = True  # the agent node can run it (the oracle needs the season's future)
+    reads_task: bool = False  # built for a family task (PolicyArguments.task; the node: the simulator's scenario)
 
 
 def _constant(arguments: PolicyArguments) -> BasePolicy:
@@ -78,13 +86,40 @@ def _budget_rule(arguments: PolicyArguments) -> BasePolicy:
 def _agent(arguments: PolicyArguments) -> BasePolicy:
     if not arguments.policy_file:
         raise ValueError("policy agent needs policy_file:=<model.zip of a family agent>")
-    from ..learning.agent import LearnedPolicy  # the loader lives with the training that writes the files
+    from .learned import LearnedPolicy
     agent = LearnedPolicy(arguments.policy_file)
     if arguments.climate:
         from .outlook import normal_et0_mm
         normal_et0_mm(arguments.climate)  # an unknown climate is refused at start, by name
         agent.site_climate = arguments.climate
     return agent
+
+
+# crop_agent_ros/agents/<task>/<policy name>/model.zip (+ model.json): the shipped agents (package data)
+AGENTS_DIR = Path(__file__).resolve().parents[1] / "agents"
+SHIPPED_POLICIES = ("es",)  # the policy names that resolve to a shipped agent of the task
+
+
+def shipped_agent_tasks(policy: str) -> list[str]:
+    """The tasks that have a shipped agent of the policy name ``policy`` (e.g. ``es``), sorted."""
+    return sorted(path.parent.parent.name for path in AGENTS_DIR.glob(f"*/{policy}/model.zip"))
+
+
+def shipped_agent_file(policy: str, task: str) -> Path:
+    """The ``model.zip`` of the shipped ``policy`` agent of ``task``; ValueError in one line naming the task and
+    the tasks that have one."""
+    path = AGENTS_DIR / task / policy / "model.zip"
+    if not task or "/" in task or not path.is_file():
+        raise ValueError(f"policy {policy}: no shipped agent for task {task!r}; tasks with one: "
+                         f"{', '.join(shipped_agent_tasks(policy))}")
+    return path
+
+
+def _es(arguments: PolicyArguments) -> BasePolicy:
+    if not arguments.task:
+        raise ValueError("policy es needs a family task (task:=, --task)")
+    from .learned import LearnedPolicy
+    return LearnedPolicy(shipped_agent_file("es", arguments.task), name="es")
 
 
 def _zero(arguments: PolicyArguments) -> BasePolicy:
@@ -110,7 +145,8 @@ POLICY_KINDS: dict[str, PolicyKind] = {kind.name: kind for kind in (
     PolicyKind("margin", "refill to ET0/0.096 + margin_mm", _margin, node=False),
     PolicyKind("ppo", "a paper-task PPO policy file (default: the shipped one)", _ppo),
     PolicyKind("oracle", "the hindsight oracle (evaluation only)", _oracle, node=False),
-    PolicyKind("budget-rule", "the water-budget rule tuned for a family task", _budget_rule),
+    PolicyKind("budget-rule", "the water-budget rule tuned for a family task", _budget_rule, reads_task=True),
+    PolicyKind("es", "the shipped evolution-strategies agent of a family task", _es, reads_task=True),
     PolicyKind("agent", "a family agent's policy file", _agent),
 )}
 NODE_POLICIES = tuple(name for name, kind in POLICY_KINDS.items() if kind.node)

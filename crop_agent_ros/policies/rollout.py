@@ -1,6 +1,7 @@
-"""Run a policy on whole seasons of a task scenario, many fields at once (the batched task environment).
+"""Run a policy on whole seasons of a task scenario, many fields at once (the batched task environment), and
+choose those seasons and their terms.
 
-Used by evaluation, by the rule tuning and by the training's held-out evaluation callback.
+Used by evaluation, by the rule tuning, by the hindsight oracle and by the training's held-out evaluation callback.
 """
 
 from __future__ import annotations
@@ -35,6 +36,28 @@ class Episodes:
     def water_productivity_kg_m3(self) -> np.ndarray:
         """Yield (kg/ha) per m3/ha of water received (irrigation + rain, sowing to harvest; 1 mm = 10 m3/ha)."""
         return self.yield_t_ha * 1000.0 / ((self.water_mm + self.rain_mm) * 10.0)
+
+
+def season_range(text: str) -> np.ndarray:
+    """Season indices of a command's ``--seasons`` (``'A..B'``, both included, or one index); ValueError naming
+    --seasons for anything else."""
+    low, _, high = text.partition("..")
+    try:
+        indices = np.arange(int(low), int(high) + 1) if high else np.array([int(low)])
+    except ValueError:
+        raise ValueError(f"--seasons: expected 'A..B' or one index, got {text!r}") from None
+    if indices.size == 0 or indices.min() < 0:
+        raise ValueError(f"--seasons: {text!r} names no season (non-negative, A <= B)")
+    return indices
+
+
+def draw_terms(scenario, seasons: np.ndarray, seed: int) -> dict:
+    """One draw of a family task's episode terms (name -> (M,) arrays: prices, quota, ...) for M ``seasons``, from
+    ``seed``: what comparisons on the same terms fix (every rule candidate, the oracle, an evaluation set)."""
+    from crop_sim_ros.task import core
+    params = core.task_params(scenario, len(seasons))
+    terms = core.draw_terms(params, np.random.default_rng([seed, 7919]), len(seasons))
+    return terms._asdict()
 
 
 def scenario_of(scenario):

@@ -15,7 +15,7 @@ from std_msgs.msg import Float32MultiArray, Float64MultiArray
 
 from crop_sim_ros import ros_interface as ri
 
-from ..policies import NODE_POLICIES, PolicyArguments, build_policy
+from ..policies import NODE_POLICIES, POLICY_KINDS, PolicyArguments, build_policy
 from .sim_client import UNCHANGED, SimClient, scenario_layout
 
 NODE_NAME = "crop_agent"
@@ -41,8 +41,8 @@ PARAMETERS = {
     "policy": ("refill", _descriptor(S, "irrigation policy", constraints=" | ".join(NODE_POLICIES))),
     "policy_file": ("", _descriptor(S, "policy ppo: Stable-Baselines3 PPO .zip ('' = the shipped ppo_benton.zip); "
                                        "policy agent: a family agent's model.zip (model.json beside it), required")),
-    "task": ("", _descriptor(S, "policy budget-rule: the family task whose tuned rule to use, e.g. benton-quota ('' "
-                                "= the simulator's scenario parameter, read at start)")),
+    "task": ("", _descriptor(S, "policies budget-rule and es: the family task whose tuned rule or shipped agent to "
+                                "use, e.g. benton-quota ('' = the simulator's scenario parameter, read at start)")),
     "climate": ("", _descriptor(S, "policy agent with a climate outlook: the field's climate (a fitted weather "
                                    "generator: benton, gainesville, maricopa; delta-changed as benton+4C or "
                                    "benton+6C+8DPDx0.3R) for seasons no generator made ('' = drive: the season's "
@@ -92,8 +92,11 @@ class AgentNode(Node):
         climate = p["climate"].strip()
         self._climate = climate or None
         self._client: SimClient | None = None
-        # budget-rule without a task: the simulator's scenario names it (built in start(), once it is read)
-        self.policy = (None if p["policy"] == "budget-rule" and not p["task"].strip()
+        # a policy of a task (budget-rule, es) without one: the simulator's scenario names it (built in start(),
+        # once it is read); an unknown kind is refused here, by make_agent_policy
+        kind = POLICY_KINDS.get(p["policy"])
+        self._policy_kind = p["policy"]
+        self.policy = (None if kind is not None and kind.node and kind.reads_task and not p["task"].strip()
                        else make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"], p["task"].strip(),
                                               climate))
         if getattr(self.policy, "outlook", None) is not None and not self.drive_mode:
@@ -107,7 +110,7 @@ class AgentNode(Node):
                 raise ValueError(f"sowing_date {p['sowing_date']!r} is not a date YYYY-MM-DD") from None
             self.policy.begin_field_season("", sowing_date)  # every season of this node (no source: climate:=)
         self.commands_sent = 0
-        policy = repr(self.policy) if self.policy is not None else "budget-rule (of the simulator's scenario)"
+        policy = repr(self.policy) if self.policy is not None else f"{p['policy']} (of the simulator's scenario)"
         self.get_logger().info(f"policy {policy}, simulator {self.sim}, "
                                f"{'driving' if self.drive_mode else 'reacting to observations'}")
 
@@ -120,9 +123,9 @@ class AgentNode(Node):
             scenario = self._client.connect()["scenario"]
             if self.policy is None:
                 if scenario.endswith((".yaml", ".yml")) or "/" in scenario:
-                    raise ValueError(f"policy budget-rule: the simulator's scenario is the file {scenario}: name "
-                                     "the tuned task with task:=")
-                self.policy = make_agent_policy("budget-rule", task=scenario)
+                    raise ValueError(f"policy {self._policy_kind}: the simulator's scenario is the file {scenario}: "
+                                     "name the task with task:=")
+                self.policy = make_agent_policy(self._policy_kind, task=scenario)
                 self.get_logger().info(f"policy {self.policy!r} of the simulator's scenario {scenario!r}")
             check_observation_size(self.policy, scenario_layout(scenario).size,
                                    f"the simulator's scenario {scenario!r}")

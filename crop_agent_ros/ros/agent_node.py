@@ -2,6 +2,7 @@
 
     ros2 run crop_sim_ros agent_node --ros-args -p policy:=refill              # reacts to the simulator
     ros2 run crop_sim_ros agent_node --ros-args -p policy:=ppo -p drive:=true   # grows a season itself
+    ros2 run crop_sim_ros agent_node --ros-args -p policy:=es -p drive:=true    # the shipped agent of the task
     python -m crop_agent_ros.ros.agent_node --ros-args ...                     # the same without a workspace
 
 Two ways of working:
@@ -24,7 +25,9 @@ Policies (parameter ``policy``, built by :func:`crop_agent_ros.ros.agent.make_ag
 ``ppo`` (a Stable-Baselines3 PPO policy file, ``policy_file``, by default the shipped
 ``crop_agent_ros/policies/ppo_benton.zip``, checked against the task's spaces when it loads). For the task
 family (a simulator with a family scenario, 29-value observations): ``budget-rule`` (the water-budget rule
-tuned for the family task named by ``task``; by default the simulator's ``scenario``, read at start) and
+tuned for the family task named by ``task``; by default the simulator's ``scenario``, read at start), ``es``
+(the shipped evolution-strategies agent of that task, package data under ``crop_agent_ros/agents/``; a task
+without one is refused at start, naming the tasks that have one) and
 ``agent`` (a family agent trained with ``crop-sim train --task``: ``policy_file:=.../model.zip``, its
 ``model.json`` beside it; one with a climate outlook reads its field's climate and sowing date from each
 reset when driving, from its ``climate`` and ``sowing_date`` parameters when reacting). The paper's policies read either observation; the family's read only 29 values:

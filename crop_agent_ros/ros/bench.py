@@ -205,7 +205,7 @@ class Bridge:
 
 def bench(rounds: int, seasons: int, vias: tuple[str, ...] = ("topic", "service")) -> dict:
     """The interleaved measurement (see the module docstring): per-round figures and the pooled ones."""
-    from crop_sim_ros.bench import MachineLoad, machine_summary
+    from crop_sim_ros.throughput import MachineLoad, machine_summary
 
     figures = {"machine": machine_summary(), "rounds": []}
     pooled = {"trigger": [], "topic_ping_pong": [], **{f"bridge_{via}": [] for via in vias}}
@@ -246,7 +246,7 @@ def bench(rounds: int, seasons: int, vias: tuple[str, ...] = ("topic", "service"
 
 def bench_baselines_only(rounds: int, calls: int) -> dict:
     """The bare baselines alone, in ``rounds`` rounds."""
-    from crop_sim_ros.bench import MachineLoad, machine_summary
+    from crop_sim_ros.throughput import MachineLoad, machine_summary
 
     figures = {"machine": machine_summary(), "rounds": []}
     pooled = {"trigger": [], "topic_ping_pong": []}

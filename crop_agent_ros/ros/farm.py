@@ -1,13 +1,14 @@
 """Grow a season over ROS 2 with one command: start the simulator node and an agent node as two processes,
 let the agent drive the season(s), print the summary, stop both.
 
-    python -m crop_agent_ros.ros.farm [--policy ppo|refill|best-constant|constant|zero|budget-rule|agent]
-                                      [--policy-file F] [--seasons 1] [--scenario NAME] [--seed 0] [--log season.csv]
+    python -m crop_agent_ros.ros.farm [--policy ppo|refill|best-constant|constant|zero|budget-rule|es|agent]
+                                      [--policy-file F] [--seasons 1] [--task NAME] [--seed 0] [--log season.csv]
 
 Defaults: the shipped PPO policy (``crop_agent_ros/policies/ppo_benton.zip``) on the embedded default
-scenario ``benton-generated`` (no data file needed), seed 0. On a family task (``--scenario benton-quota``, ...)
-``--policy budget-rule`` is that task's tuned rule and ``--policy agent --policy-file .../model.zip`` a family
-agent (``crop-sim train --task``). Both nodes run on a private ROS_DOMAIN_ID
+task ``benton-generated`` (no data file needed), seed 0. On a family task (``--task benton-quota``, ...)
+``--policy budget-rule`` is that task's tuned rule, ``--policy es`` its shipped evolution-strategies agent
+(``crop-sim farm --task benton-quota --policy es``; a task without one is refused in one line naming the tasks
+that have one) and ``--policy agent --policy-file .../model.zip`` a family agent (``crop-sim train --task``). Both nodes run on a private ROS_DOMAIN_ID
 with discovery kept on this machine, so nothing else on the network sees them (``--domain-id`` to choose).
 On a ROS 2 machine the same job is ``ros2 launch crop_sim_ros farm.launch.py``.
 
@@ -31,6 +32,7 @@ from pathlib import Path
 from crop_sim_ros.usage import EXIT_USAGE, UsageError
 
 from ..policies import NODE_POLICIES
+from ..policies.registry import SHIPPED_POLICIES, shipped_agent_file
 from .process import NodeProcess, isolated_ros_env, pick_domain_id
 
 SUMMARY_PREFIX = "season summary: "
@@ -48,7 +50,7 @@ class Interrupted(BaseException):
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--policy", default="ppo", choices=NODE_POLICIES,
                         help="the agent's policy (default: the shipped PPO policy; budget-rule: the family task's "
-                             "tuned rule; agent: a family agent, --policy-file)")
+                             "tuned rule; es: the family task's shipped agent; agent: a family agent, --policy-file)")
     parser.add_argument("--policy-file", default="", help="policy ppo: a Stable-Baselines3 PPO .zip "
                         "(default: the shipped crop_agent_ros/policies/ppo_benton.zip); policy agent: a family "
                         "agent's model.zip (required)")
@@ -57,8 +59,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "is its generator's)")
     parser.add_argument("--constant-mm", type=float, default=10.0, help="policy constant: mm per day (default 10)")
     parser.add_argument("--seasons", type=int, default=1, help=f"seasons to grow (default 1, at most {MAX_SEASONS})")
-    parser.add_argument("--scenario", default="benton-generated", help="scenario name or YAML path "
-                        "(default benton-generated, the embedded default)")
+    parser.add_argument("--task", default="benton-generated", help="task: a built-in scenario's name or a "
+                        "scenario YAML path (default benton-generated, the embedded default)")
     parser.add_argument("--data-dir", default="", help="directory of the scenario's weather files")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first season (default 0)")
     parser.add_argument("--log", default="", help="season log CSV (default: a file in a temporary directory, "
@@ -99,6 +101,11 @@ def run(args) -> int:
         raise UsageError(f"--policy-file: {args.policy_file} is not a file")
     if args.policy == "agent" and not args.policy_file:
         raise UsageError("--policy agent needs --policy-file (a family agent's model.zip)")
+    if args.policy in SHIPPED_POLICIES:  # refused here, before any node starts
+        try:
+            shipped_agent_file(args.policy, args.task)
+        except ValueError as error:
+            raise UsageError(str(error)) from None
     _set_signal_handlers(_interrupt)
     try:
         return _grow(args)
@@ -112,7 +119,7 @@ def _grow(args) -> int:
     env = isolated_ros_env(args.domain_id if args.domain_id is not None else pick_domain_id(salt=53))
     workdir = Path(tempfile.mkdtemp(prefix="crop_farm_"))
     log = Path(args.log).expanduser().resolve() if args.log else workdir / "season_log.csv"
-    sim_args = ["-p", f"scenario:={args.scenario}", "-p", f"seed:={args.seed}", "-p", f"log_path:={log}"]
+    sim_args = ["-p", f"scenario:={args.task}", "-p", f"seed:={args.seed}", "-p", f"log_path:={log}"]
     if args.data_dir:
         sim_args += ["-p", f"data_dir:={args.data_dir}"]
     agent_args = ["-p", f"policy:={args.policy}", "-p", "drive:=true", "-p", f"seasons:={args.seasons}",

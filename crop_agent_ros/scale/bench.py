@@ -77,7 +77,7 @@ class NamespaceCpu:
         raise RuntimeError(f"the sweep (pid {pid}) did not leave this network namespace in {timeout_s:.0f} s")
 
     def _poll(self) -> None:
-        from crop_sim_ros.bench import cpu_s_of
+        from crop_sim_ros.throughput import cpu_s_of
         while True:
             for entry in Path("/proc").iterdir():
                 if not entry.name.isdigit():
@@ -126,7 +126,7 @@ def run_sweep(prefix: list[str], crop_sim: str, config: Path, cpus: int, out: Pa
 
 
 def run(args) -> int:
-    from crop_sim_ros.bench import MachineLoad, machine_summary
+    from crop_sim_ros.throughput import MachineLoad, machine_summary
     for name, value, high in (("--trials", args.trials, 64), ("--timesteps", args.timesteps, 10_000_000),
                               ("--rounds", args.rounds, 20)):
         if not 1 <= value <= high:

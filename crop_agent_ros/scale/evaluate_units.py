@@ -1,11 +1,11 @@
 """``crop-sim evaluate --task T --address ...``: the evaluation's units as Ray tasks.
 
-Each unit (:class:`crop_agent_ros.learning.evaluate_task.Unit`: a policy on a set with one noise seed, or the
+Each unit (:class:`crop_agent_ros.learning.evaluation_units.Unit`: a policy on a set with one noise seed, or the
 oracle on a chunk of a set's seasons) is one Ray task of one CPU, spread over the nodes, computed by the same
-:func:`~crop_agent_ros.learning.evaluate_task.run_unit` as a run without ``--address``. Everything a worker
+:func:`~crop_agent_ros.learning.evaluation_units.run_unit` as a run without ``--address``. Everything a worker
 needs goes to it as data (put once in the object store): the set (its scenario dataclass), the set's terms,
 the tuned rule (the object) and each agent as the bytes of its ``.zip`` and ``.json``
-(:class:`~crop_agent_ros.learning.evaluate_task.AgentFile`). Workers read the weather from
+(:class:`~crop_agent_ros.learning.evaluation_units.AgentFile`). Workers read the weather from
 ``CROP_SIM_DATA_DIR`` (:func:`crop_agent_ros.scale.cluster.connect`) and need this package installed.
 """
 
@@ -13,14 +13,17 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from ..learning.evaluation_units import ORACLE, AgentFile, run_unit
+from .cluster import this_node
+
+LOCAL_RAY = "local"  # --address local: a private Ray instance on this machine
+
 # a worker's agents, loaded once per content: a worker process runs many units of one evaluation
 _WORKER_AGENTS: dict = {}
 
 
 def unit_task(unit, evaluation_set, terms: dict, source):
     """One unit on a Ray worker: ``source`` is the rule, an AgentFile, or None for the oracle."""
-    from ..learning.evaluate_task import AgentFile, run_unit
-    from .cluster import this_node
     policy = source.policy(_WORKER_AGENTS) if isinstance(source, AgentFile) else source
     return replace(run_unit(unit, evaluation_set, terms, policy), node=this_node())
 
@@ -30,7 +33,6 @@ def run_on_ray(units: list, sets: list, terms: list[dict], sources: dict, addres
     private instance with ``cpus`` CPUs), ``auto`` or HOST:PORT (UsageError if no cluster answers)."""
     import ray
 
-    from ..learning.evaluate_task import LOCAL_RAY, ORACLE
     from . import cluster as ray_cluster
     connected = ray_cluster.connect(None if address == LOCAL_RAY else address, cpus)
     try:

@@ -10,15 +10,15 @@ The configuration (YAML; every key but ``tasks`` optional)::
     name: quota-lr                   # the sweep's name; output in runs/sweeps/<name> unless --out
     tasks: [benton-quota, benton-sensing]
     seeds: [0, 1, 2, 3, 4]           # training seeds (default [0])
-    train:                           # fixed `crop-sim train` options, by long name without dashes
-      timesteps: 2000000
-      eval-freq: 400000
+    train:                           # fixed `crop-sim train` options (algorithm, no-progress) by long name
+      timesteps: 2000000             # without dashes; any other key is a setting of the algorithm's recipe
+      eval-freq: 400000              # (--hyperparams eval_freq=400000; crop_agent_ros/learning/hyperparams)
       no-progress: true              # a flag: true adds it; false adds its --no- form if it has one
-    grid:                            # searched options: every combination of the listed values
+    grid:                            # searched settings: every combination of the listed values
       learning-rate: [3.0e-4, 1.0e-4]
-    random:                          # searched options: drawn `samples` times per grid point
+    random:                          # searched settings: drawn `samples` times per grid point
       log-std-init: {uniform: [-1.5, -0.5]}
-      net-arch: {choice: ["64,64", "128,128"]}
+      net-arch: {choice: [[64, 64], [128, 128]]}
       n-epochs: {randint: [5, 10]}   # inclusive
       ent-coef: {loguniform: [1.0e-4, 1.0e-2]}
     samples: 4                       # random draws per grid point (default 1)
@@ -30,7 +30,8 @@ The configuration (YAML; every key but ``tasks`` optional)::
     cpus-per-trial: 1
 
 Configurations are numbered ``c00``, ``c01``, ...: the grid's combinations in order, each with its random
-draws. Every option value is checked by the commands' own parsers before Ray starts. Trial ``<task>-cNN-sS``
+draws. Every option value is checked by the commands' own parsers, and every trial's training settings by its
+recipe's validation, before Ray starts. Trial ``<task>-cNN-sS``
 writes under ``<out>/trials/<trial>/``: ``run/`` (the training run: checkpoints, curve, ``model.zip``), ``eval/``
 (the evaluation's tables), ``trial.log`` (its output) and ``attempts.log`` (one line per attempt: node and
 process). A retry reuses a finished training (``run/summary.json``) and redoes the rest; an unfinished
@@ -76,7 +77,7 @@ from .cluster import check_address, probe
 TOP_KEYS = {"name", "tasks", "seeds", "train", "grid", "random", "samples", "search-seed", "evaluate", "retries",
             "cpus-per-trial"}
 DISTRIBUTIONS = ("uniform", "loguniform", "randint", "choice")
-RESERVED_TRAIN = {"task", "seed", "out", "name"}          # set by the sweep for each trial
+RESERVED_TRAIN = {"task", "seed", "out", "hyperparams", "show"}  # set by the sweep for each trial (or meaningless)
 RESERVED_EVALUATE = {"task", "agents", "out", "address", "cpus", "oracle-cache"}  # set per trial
 MAX_TRIALS = 10_000
 EXIT_INTERRUPTED = 130
@@ -129,6 +130,26 @@ def option_argv(options: dict, what: str, parser: argparse.ArgumentParser) -> li
             argv += [f"--{name}", str(value)]
         else:
             raise UsageError(f"{what}: option {name!r} has value {value!r}; give a number, a string or true/false")
+    return argv
+
+
+def training_argv(options: dict, what: str, parser: argparse.ArgumentParser) -> list[str]:
+    """A trial's ``crop-sim train`` arguments: an option of the command (``algorithm``, ``no-progress``) as
+    :func:`option_argv` gives it, anything else as one setting of the recipe, ``--hyperparams key=value`` (``-`` in
+    the name read as ``_``: ``learning-rate`` is ``learning_rate``; a list, e.g. ``net-arch: [64, 64]``, as YAML)."""
+    known = {o for action in parser._actions for o in action.option_strings}
+    commands = {name: value for name, value in options.items() if isinstance(name, str) and f"--{name}" in known}
+    argv = option_argv(commands, what, parser)
+    for name, value in options.items():
+        if name in commands:
+            continue
+        if not isinstance(name, str) or not name or name.startswith("-"):
+            raise UsageError(f"{what}: option {name!r} must be a long option name without dashes, e.g. timesteps")
+        if isinstance(value, (dict, type(None))):
+            raise UsageError(f"{what}: setting {name!r} has value {value!r}; give a number, a string, true/false "
+                             "or a list")
+        text = json.dumps(value) if isinstance(value, (list, bool)) else value
+        argv += ["--hyperparams", f"{name.replace('-', '_')}={text}"]
     return argv
 
 
@@ -248,22 +269,36 @@ class SweepSpec:
         """Every planned trial, task-major, then configuration, then seed; each command line checked by the
         command's own parser (UsageError names the first that does not parse)."""
         train_parser, evaluate_parser = command_parser("train"), command_parser("evaluate")
-        fixed_train = option_argv(self.train, "train", train_parser)
+        fixed_train = training_argv(self.train, "train", train_parser)
         fixed_evaluate = option_argv(self.evaluate, "evaluate", evaluate_parser)
-        planned = []
+        planned, checked = [], set()
         width = max(2, len(str(len(self.configurations) - 1)))
         for task in self.tasks:
             for index, values in enumerate(self.configurations):
                 config = f"c{index:0{width}d}"
-                searched = option_argv(values, f"configuration {config}", train_parser)
+                searched = training_argv(values, f"configuration {config}", train_parser)
                 for seed in self.seeds:
-                    train_argv = ("--task", task, "--seed", str(seed), *fixed_train, *searched)
+                    trial_train = ("--task", task, "--seed", str(seed), *fixed_train, *searched)
                     evaluate_argv = ("--task", task, *fixed_evaluate)
-                    train_parser.parse_args([*train_argv, "--out", "x"])
+                    _check_training(task, config, train_parser.parse_args([*trial_train, "--out", "x"]), checked)
                     evaluate_parser.parse_args([*evaluate_argv, "--agents", f"{AGENT}=x", "--out", "x"])
-                    planned.append(Trial(f"{task}-{config}-s{seed}", task, config, seed, values, train_argv,
+                    planned.append(Trial(f"{task}-{config}-s{seed}", task, config, seed, values, trial_train,
                                          evaluate_argv))
         return planned
+
+
+def _check_training(task: str, config: str, args: argparse.Namespace, checked: set) -> None:
+    """The trial's training settings resolve and validate (:mod:`crop_agent_ros.learning.hyperparameters`), before
+    Ray starts; ``checked`` keeps the combinations already seen."""
+    key = (task, args.algorithm, tuple(args.hyperparams))
+    if key in checked:
+        return
+    from ..learning.train import resolved_settings
+    try:
+        resolved_settings(task, args.algorithm, args.hyperparams)
+    except UsageError as error:
+        raise UsageError(f"configuration {config} on task {task}: crop-sim train: {error}") from None
+    checked.add(key)
 
 
 def _integer(value, name: str, low: int, high: int, what: str) -> int:

@@ -1,71 +1,82 @@
 """The irrigation task: scenarios, the functional core (observation, reward), the Gymnasium environment and
 its vectorised form, and their registration.
 
-Registered ids (``gymnasium.make(id)``; ``gymnasium.make_vec(id, num_envs=N)`` gives the batched
-:class:`IrrigationVectorEnv`):
+One name per task: every built-in scenario (``crop_sim_ros/task/scenarios/<name>.yaml``) is a task, and its name
+is what the CLI (``--task``), the ROS parameter (``scenario:=``), the docs and the leaderboard use. Its Gymnasium
+id is derived by one rule, :func:`gym_id`: ``crop-sim/<name>-v0`` (and back, :func:`task_name`). Every built-in
+task is registered, with ``max_episode_steps`` its longest season in days (``max_season_days``):
 
-======================================= ===================== ===========================================
-id                                      scenario              weather
-======================================= ===================== ===========================================
-SimpleIrrigation-Generated-v0           benton-generated      generated Benton County seasons (no file)
-SimpleIrrigation-Benton2000-v0          benton-2000           AgWeatherNet Benton E., 2000 (the paper's)
-SimpleIrrigation-Paterson1992-v0 .. 95  paterson-1992 .. 1995 DSSAT WAPA9201..9501.WTH (held out)
-SimpleIrrigation-HeldOut-v0             heldout               the five real seasons
-SimpleIrrigation-Money-v0               benton-money          family: net return USD/ha (29 values)
-SimpleIrrigation-Quota-v0               benton-quota          family: + seasonal quota, pivot 8 mm/d
-SimpleIrrigation-Capacity-v0            benton-capacity       family: irrigation capacity 4.5 mm/d
-SimpleIrrigation-Sensing-v0             benton-sensing        family: quota + noisy PAW with dropouts
-SimpleIrrigation-Blind-v0               benton-blind          family: quota + no PAW sensor
-SimpleIrrigation-Climates-v0            climates-quota        family: quota, Benton + Gainesville weather
-SimpleIrrigation-Climates3-v0           climates3-quota       family: climates-quota + Benton sown March 1
-SimpleIrrigation-Climates4-v0           climates4-quota       family: climates3-quota + that Benton +4 degC
-SimpleIrrigation-Climates6-v0           climates6-quota       family: + Benton April 1 and Gainesville +4 degC
-SimpleIrrigation-Climates8-v0           climates8-quota       family: + Benton sown May 1, and +4 degC
-SimpleIrrigation-Climates10-v0          climates10-quota      family: + Benton +6 degC in drier air
-SimpleIrrigation-Climates12-v0          climates12-quota      family: + the same with 0.3 x the rain
-SimpleIrrigation-ClimatesSpread-v0      climates-spread-quota family: + Benton, each season its own climate
-======================================= ===================== ===========================================
+.. code-block:: python
 
-The family tasks (money, quota, capacity, sensing, climates) are documented in :mod:`crop_sim_ros.task.layout`
-(their 29-value observation) and :mod:`crop_sim_ros.task.terms` (their terms and defaults).
+    gymnasium.make("crop-sim/benton-generated-v0")                 # an IrrigationEnv in a TimeLimit
+    gymnasium.make_vec("crop-sim/benton-quota-v0", num_envs=1024)  # the batched IrrigationVectorEnv
 
-Imports neither rclpy nor torch (the Stable-Baselines3 adapter is :mod:`crop_sim_ros.task.sb3_vec`).
+========================================= ===================================================================
+names                                     task
+========================================= ===================================================================
+``benton-generated``                      the paper's task on generated Benton County seasons (no data file)
+``benton-2000``                           the paper's season, AgWeatherNet Benton E. 2000
+``paterson-1992`` .. ``paterson-1995``    held-out real seasons (DSSAT WAPA9201..9501.WTH)
+``heldout``                               the five real seasons together
+``gainesville-*``, ``maricopa-*``,        other climates and sowing dates, generated (``-generated``) or
+``benton-*-generated``                    real (``-real``)
+``benton-money``                          family: net return USD/ha (29-value observation)
+``benton-quota``                          family: + seasonal quota, pivot 8 mm/d
+``benton-capacity``                       family: irrigation capacity 4.5 mm/d
+``benton-sensing``, ``benton-blind``      family: quota + noisy PAW with dropouts / no PAW sensor
+``climates*-quota``                       family: quota across climates (Benton, Gainesville; Maricopa held out)
+``benton-early-*``, ``maricopa-*-quota``  family: quota at other sowing dates and climates
+========================================= ===================================================================
+
+The family tasks are documented in :mod:`crop_sim_ros.task.layout` (their 29-value observation) and
+:mod:`crop_sim_ros.task.terms` (their terms and defaults); every scenario in :mod:`crop_sim_ros.task.scenario`.
+
+Importing registers the ids from the scenario files alone (no weather is read or generated until an
+environment is made). Imports neither rclpy nor torch (the Stable-Baselines3 adapter is
+:mod:`crop_sim_ros.task.sb3_vec`).
 """
+
+from __future__ import annotations
 
 from gymnasium.envs.registration import register, registry
 
 from .env import STATE_INFO_KEYS, STEP_INFO_KEYS, IrrigationEnv
-from .scenario import ObservationNoise, Scenario, get_scenario, load_scenario, scenario_names
+from .scenario import ObservationNoise, Scenario, get_scenario, load_scenario, longest_season_days, scenario_names
 from .vector_env import IrrigationVectorEnv
 
-ENV_IDS = {
-    "SimpleIrrigation-Generated-v0": "benton-generated",
-    "SimpleIrrigation-Benton2000-v0": "benton-2000",
-    "SimpleIrrigation-Paterson1992-v0": "paterson-1992",
-    "SimpleIrrigation-Paterson1993-v0": "paterson-1993",
-    "SimpleIrrigation-Paterson1994-v0": "paterson-1994",
-    "SimpleIrrigation-Paterson1995-v0": "paterson-1995",
-    "SimpleIrrigation-HeldOut-v0": "heldout",
-    "SimpleIrrigation-Money-v0": "benton-money",
-    "SimpleIrrigation-Quota-v0": "benton-quota",
-    "SimpleIrrigation-Capacity-v0": "benton-capacity",
-    "SimpleIrrigation-Sensing-v0": "benton-sensing",
-    "SimpleIrrigation-Blind-v0": "benton-blind",
-    "SimpleIrrigation-Climates-v0": "climates-quota",
-    "SimpleIrrigation-Climates3-v0": "climates3-quota",
-    "SimpleIrrigation-Climates4-v0": "climates4-quota",
-    "SimpleIrrigation-Climates6-v0": "climates6-quota",
-    "SimpleIrrigation-Climates8-v0": "climates8-quota",
-    "SimpleIrrigation-Climates10-v0": "climates10-quota",
-    "SimpleIrrigation-Climates12-v0": "climates12-quota",
-    "SimpleIrrigation-ClimatesSpread-v0": "climates-spread-quota",
-}
+GYM_NAMESPACE = "crop-sim"
+GYM_VERSION = 0
+_GYM_PREFIX, _GYM_SUFFIX = f"{GYM_NAMESPACE}/", f"-v{GYM_VERSION}"
 
-for _env_id, _scenario in ENV_IDS.items():
-    if _env_id not in registry:
-        register(id=_env_id, entry_point="crop_sim_ros.task.env:IrrigationEnv",
+
+def _derived_id(name: str) -> str:
+    """The rule: task name -> Gymnasium id (unchecked)."""
+    return _GYM_PREFIX + name + _GYM_SUFFIX
+
+
+def gym_id(name: str) -> str:
+    """The Gymnasium id of the built-in task ``name``: ``crop-sim/<name>-v0``. ValueError naming ``name`` for a
+    name that is not a built-in scenario."""
+    if name not in scenario_names():
+        raise ValueError(f"{name!r} is not a built-in task; known: {', '.join(scenario_names())}")
+    return _derived_id(name)
+
+
+def task_name(env_id: str) -> str:
+    """The task of the Gymnasium id ``env_id`` (the inverse of :func:`gym_id`). ValueError naming ``env_id`` for
+    an id the rule does not make from a built-in task."""
+    if (not isinstance(env_id, str) or not (env_id.startswith(_GYM_PREFIX) and env_id.endswith(_GYM_SUFFIX))
+            or env_id[len(_GYM_PREFIX):-len(_GYM_SUFFIX)] not in scenario_names()):
+        raise ValueError(f"{env_id!r} is not the id of a built-in task ({_GYM_PREFIX}<task>{_GYM_SUFFIX}, a task of "
+                         f"{', '.join(scenario_names())})")
+    return env_id[len(_GYM_PREFIX):-len(_GYM_SUFFIX)]
+
+
+for _name in scenario_names():
+    if _derived_id(_name) not in registry:
+        register(id=_derived_id(_name), entry_point="crop_sim_ros.task.env:IrrigationEnv",
                  vector_entry_point="crop_sim_ros.task.vector_env:IrrigationVectorEnv",
-                 kwargs={"scenario": _scenario})
+                 max_episode_steps=longest_season_days(_name), kwargs={"scenario": _name})
 
-__all__ = ["ENV_IDS", "IrrigationEnv", "IrrigationVectorEnv", "ObservationNoise", "STATE_INFO_KEYS",
-           "STEP_INFO_KEYS", "Scenario", "get_scenario", "load_scenario", "scenario_names"]
+__all__ = ["GYM_NAMESPACE", "IrrigationEnv", "IrrigationVectorEnv", "ObservationNoise", "STATE_INFO_KEYS",
+           "STEP_INFO_KEYS", "Scenario", "get_scenario", "gym_id", "load_scenario", "scenario_names", "task_name"]

@@ -2,7 +2,7 @@
 
 ``bench_env()`` prints and returns these figures (each the best of ``repeats`` timed runs, after a warm-up;
 the action is a constant irrigation, episodes reset as they end), each printed with the machine's load
-during its measurement (:class:`crop_sim_ros.bench.MachineLoad`):
+during its measurement (:class:`crop_sim_ros.throughput.MachineLoad`):
 
 - ``env_steps``: raw ``IrrigationEnv.step`` calls;
 - ``make_steps``: steps through ``gymnasium.make`` (with its checker and order wrappers);
@@ -17,7 +17,7 @@ during its measurement (:class:`crop_sim_ros.bench.MachineLoad`):
 - ``one_cpu_bound_field_days``: 1 / (1/model + 1/noise), the most the vector env can reach on this CPU
   with the current noise scheme (any other scheme would change every result computed so far).
 
-Each is a :class:`crop_sim_ros.bench.Rate`: per second of wall time and per second of this process's CPU
+Each is a :class:`crop_sim_ros.throughput.Rate`: per second of wall time and per second of this process's CPU
 time (on a shared machine the second holds better).
 """
 
@@ -29,9 +29,9 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
-from ..bench import MachineLoad, Rate, best_rate, figure_line, interleaved_best_rates, measured
+from ..throughput import MachineLoad, Rate, best_rate, figure_line, interleaved_best_rates, measured
 from ..model import step
-from . import ENV_IDS, core
+from . import core, gym_id
 from .env import IrrigationEnv
 from .vector_env import IrrigationVectorEnv, PrefetchedNormal
 
@@ -120,15 +120,14 @@ def bench_env(scenario: str = "benton-generated", steps: int = 20_000, num_field
               vector_steps: int = 200, repeats: int = 3, data_dir: str | Path | None = None,
               echo=print) -> dict[str, Rate]:
     """Measure (see the module docstring) and print the figures with ``echo``; returns them."""
-    env_id = next((i for i, name in ENV_IDS.items() if name == scenario), None)
+    env_id = gym_id(scenario)
     echo(f"scenario {scenario}")
     results = {"env_steps": measured(
         "IrrigationEnv.step", lambda: _single_env_rate(IrrigationEnv(scenario, data_dir), steps, repeats),
         "steps", echo)}
-    if env_id is not None:
-        results["make_steps"] = measured(
-            f"gymnasium.make({env_id})",
-            lambda: _single_env_rate(gym.make(env_id, data_dir=data_dir), steps, repeats), "steps", echo)
+    results["make_steps"] = measured(
+        f"gymnasium.make({env_id})",
+        lambda: _single_env_rate(gym.make(env_id, data_dir=data_dir), steps, repeats), "steps", echo)
     vector = IrrigationVectorEnv(num_fields, scenario, data_dir)
     where = "noise thread" if vector.noise_thread else "noise inline"
     results["vector_field_days"] = measured(f"IrrigationVectorEnv, {num_fields} fields ({where})",

@@ -115,20 +115,24 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
     ## Episode End
 
     - Termination: the crop matures (TT passes Tsum, the canopy senesces, or the harvest date).
-    - Truncation: the season's weather (at most ``max_season_days`` days) runs out before maturity.
+    - Truncation: the season's weather (at most ``max_season_days`` days) runs out before maturity. A
+      registered id also has ``max_episode_steps``, the scenario's longest season in days (200 for every
+      built-in scenario): ``gymnasium.make`` wraps the environment in a ``TimeLimit`` of that many steps (one
+      step is one day), and ``gymnasium.make_vec`` gives the vector environment the same limit.
     Stepping after either raises RuntimeError; call ``reset``.
 
     ## Arguments
 
     ```python
-    gymnasium.make("SimpleIrrigation-Generated-v0")        # scenario "benton-generated" (no data file)
-    gymnasium.make("SimpleIrrigation-Benton2000-v0")       # the paper's season, AgWeatherNet Benton E. 2000
+    gymnasium.make("crop-sim/benton-generated-v0")         # task "benton-generated" (no data file)
+    gymnasium.make("crop-sim/benton-2000-v0")              # the paper's season, AgWeatherNet Benton E. 2000
     IrrigationEnv(scenario="heldout", data_dir=None)        # a Scenario or a built-in scenario's name
     env.reset(seed=0)                                       # seeds the weather draw and all noise
     env.reset(options={"season": 2})                        # the scenario's season 2
     env.reset(options={"weather": weather_series})          # a given WeatherSeries, sown on its first day
     ```
 
+    Every built-in scenario is registered as ``crop-sim/<name>-v0`` (``crop_sim_ros.task.gym_id``).
     ``data_dir``: where the scenario's weather files are (default ``../shared/data`` next to the
     repository). Same seed and same actions give the same episode, bit for bit.
 

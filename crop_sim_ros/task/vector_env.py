@@ -97,17 +97,24 @@ class IrrigationVectorEnv(VectorEnv):
     ``noise_thread``: draw the observation noise a step ahead on a worker thread (default: when this
     process may run on more than one CPU, ``os.sched_getaffinity``); False draws it on the calling thread.
     The values are the same either way.
+
+    ``max_episode_steps``: a field's season is truncated after this many days (what ``TimeLimit`` does to one
+    environment; ``gymnasium.make_vec`` passes the registered value); None: only when its weather runs out.
     """
 
     def __init__(self, num_envs: int = 1, scenario: str | Scenario = "benton-generated",
                  data_dir: str | Path | None = None, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-                 noise_thread: bool | None = None):
+                 noise_thread: bool | None = None, max_episode_steps: int | None = None):
         self.scenario = scenario if isinstance(scenario, Scenario) else get_scenario(scenario, data_dir)
         self.num_envs = int(num_envs)
         if not 1 <= self.num_envs <= MAX_FIELDS:
             raise ValueError(f"num_envs must be in 1..{MAX_FIELDS:,} (one field's state, weather gathers and noise "
                              f"cost about 2 kB), got {num_envs}")
         self.autoreset_mode = AutoresetMode(autoreset_mode)
+        if max_episode_steps is not None and (isinstance(max_episode_steps, bool) or not (
+                isinstance(max_episode_steps, (int, np.integer)) and max_episode_steps >= 1)):
+            raise ValueError(f"max_episode_steps must be a whole number of days >= 1 or None, got {max_episode_steps!r}")
+        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.noise_thread = len(os.sched_getaffinity(0)) > 1 if noise_thread is None else bool(noise_thread)
         if self.autoreset_mode == AutoresetMode.DISABLED:
             raise ValueError("IrrigationVectorEnv supports AutoresetMode.NEXT_STEP and SAME_STEP")
@@ -195,6 +202,8 @@ class IrrigationVectorEnv(VectorEnv):
         rewards = core.reward(self.params, state, applied, next_state)
         terminations = core.terminal(next_state)
         truncations = core.truncated(self._table, next_state)
+        if self.max_episode_steps is not None:  # as TimeLimit: a season's step count is its day count
+            truncations = truncations | (next_state.crop.days_since_sowing >= self.max_episode_steps)
         self._returns += rewards
         stepped = self._all
         if self.autoreset_mode == AutoresetMode.NEXT_STEP:

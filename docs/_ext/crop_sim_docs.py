@@ -403,7 +403,7 @@ class RosParametersDirective(SphinxDirective):
 
     def run(self):
         if self.arguments[0] == "sim":
-            from crop_sim_ros.sim_node import PARAMETERS
+            from crop_sim_ros.sim_parameters import PARAMETERS
             rows = [[f"`{name}`", type(spec.default).__name__, f"`{spec.default!r}`",
                      f"{number(spec.low)}..{number(spec.high)}" if spec.low is not None else "",
                      spec.description + (f" ({spec.constraints})" if spec.constraints else "")]
