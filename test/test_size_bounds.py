@@ -44,9 +44,12 @@ def test_sizes_at_their_bounds_are_accepted():
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["train", "--timesteps", "0"], "--timesteps 0: must be in 1..1,000,000,000"),
-    (["train", "--task", "benton-quota", "--n-envs", "10000000"], "--n-envs 10000000: must be in 1..100,000"),
-    (["train", "--task", "benton-quota", "--history", "0"], "--history 0: must be in 1..365"),
+    (["train", "--task", "benton-quota", "--algorithm", "ppo", "--hyperparams", "timesteps=0"],
+     "hyperparameter timesteps 0: Input should be greater than or equal to 1"),
+    (["train", "--task", "benton-quota", "--algorithm", "es", "--hyperparams", "timesteps=10000000000"],
+     "hyperparameter timesteps 10000000000: Input should be less than or equal to 1000000000"),
+    (["train", "--task", "benton-quota", "--algorithm", "ppo", "--hyperparams", "n_envs=10000000"],
+     "hyperparameter n_envs 10000000: Input should be less than or equal to 100000"),
 ])
 def test_training_sizes_have_upper_bounds(argv, message, capsys):
     from crop_agent_ros.cli import main
