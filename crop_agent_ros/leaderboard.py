@@ -23,6 +23,7 @@ from crop_sim_ros.usage import UsageError, user_input
 from .learning.summary import SUMMARY_FORMAT
 
 CONFIG = Path("results/leaderboard.yaml")
+CONFIG_MAX_BYTES = 1 << 20  # 15 times today's
 SUMMARIES = Path("results/summaries")
 PAGE = Path("docs/leaderboard.md")
 README = Path("README.md")
@@ -90,12 +91,13 @@ def _validation_line(error) -> str:
 
 
 def read_config(root: Path):
-    """``results/leaderboard.yaml`` of ``root``, validated (UsageError naming the file and the field)."""
-    import yaml
+    """``results/leaderboard.yaml`` of ``root``, validated (UsageError naming the file and the field; read by
+    :mod:`crop_sim_ros.safe_yaml`: a regular file of at most CONFIG_MAX_BYTES, no aliases or duplicate keys)."""
     from pydantic import ValidationError
-    path = root / CONFIG
-    with user_input(str(CONFIG), (OSError, UnicodeDecodeError, yaml.YAMLError)):
-        raw = yaml.safe_load(path.read_text(encoding="utf-8"))
+
+    from crop_sim_ros.safe_yaml import read_yaml
+    with user_input(None, (ValueError,)):
+        raw = read_yaml(root / CONFIG, max_bytes=CONFIG_MAX_BYTES, source=str(CONFIG))
     try:
         return _models().model_validate(raw)
     except ValidationError as error:
@@ -366,9 +368,12 @@ def run(args) -> int:
             return 1
         print(f"up to date: {', '.join(str(path) for path in written)}")
         return 0
+    from crop_sim_ros.output import check_output_file, output_directory, write_text_atomic
+    for path in written:   # every file checked before any is written
+        check_output_file(root / path, "--root")
     for path, text in written.items():
-        (root / path).parent.mkdir(parents=True, exist_ok=True)
-        (root / path).write_text(text, encoding="utf-8")
+        output_directory((root / path).parent, "--root")
+        write_text_atomic(root / path, text)
     print(f"wrote {', '.join(str(path) for path in written)}"
           + ("" if README in written else f" ({README}: no {START} marker, left alone)"))
     return 0

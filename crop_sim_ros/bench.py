@@ -17,6 +17,7 @@ from .model import DailyWeather, Management, field_parameters, initial_state, re
 from .model import zhao2019_library
 from .model.simple import SCALAR_MATH, scalar_parameters, scalar_state
 from .throughput import Rate, best_rate, machine_summary, measured
+from .usage import check_range
 
 SEASON_DAYS = 183
 
@@ -72,12 +73,18 @@ def bench_scalar(repeats: int = 3, seed: int = 0, seasons: int = 1) -> Rate:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fields", type=int, default=10_000,
-                        help="fields in the batched model and vector environment runs (default 10000)")
-    parser.add_argument("--repeats", type=int, default=3, help="best of this many seasons (default 3)")
+                        help="fields in the batched model and vector environment runs (default 10000, at most 1000000)")
+    parser.add_argument("--repeats", type=int, default=3, help="best of this many seasons (default 3, at most 100)")
     parser.add_argument("--model-only", action="store_true", help="skip the environment benchmarks")
 
 
+MAX_FIELDS = 1_000_000  # the vector environment's own bound
+MAX_REPEATS = 100
+
+
 def run(args: argparse.Namespace) -> int:
+    check_range("--fields", args.fields, 1, MAX_FIELDS)
+    check_range("--repeats", args.repeats, 1, MAX_REPEATS)
     print(f"machine: {machine_summary()}")
     print(f"SIMPLE model, {SEASON_DAYS}-day season, one thread, best of {args.repeats}:")
     measured("N = 1 (array path, 20 seasons a run)", lambda: bench_model(1, args.repeats, seasons=20))

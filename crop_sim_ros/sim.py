@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 import rclpy.parameter
-import yaml
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
@@ -28,20 +27,19 @@ from std_msgs.msg import Float32MultiArray, Float64MultiArray
 from std_srvs.srv import Trigger
 
 from . import ros_interface as ri
+from .safe_yaml import YamlInputError, read_yaml
 from .season_log import TERM_COLUMNS, SeasonLog, log_path_problem
 from .session import FarmSession
 from .sim_parameters import MODES, NODE_NAME, PARAMETERS, ParameterSpec
 from .task import IrrigationEnv, ObservationNoise, Scenario, get_scenario, load_scenario
 from .task.layout import PAPER, layout_of_size
+from .task.scenario import SCENARIO_FILE_KEYS
 
 # Parameters that define the environment (a change rebuilds it at the next reset).
 ENV_PARAMETERS = ("scenario", "data_dir", "crop", "cultivar", "soil", "co2_ppm", "noise_scale",
                   "irrigation_cost_per_mm")
 # Parameters rclpy itself reads from the command line (not unknown, though not in PARAMETERS).
 RCLPY_PARAMETERS = ("use_sim_time", "start_type_description_service")
-# What the top level of a scenario YAML may hold (Scenario's fields, and ``base``: see crop_sim_ros.task.scenario).
-SCENARIO_FILE_FIELDS = frozenset(f.name for f in fields(Scenario) if f.name != "data_dir") | {"base"}
-SCENARIO_FILE_MAX_BYTES = 1 << 20  # far more than any scenario YAML; a bigger file is refused unread
 REFUSAL_MAX_CHARS = 400
 _QUOTED = re.compile(r"'(?:[^'\\\n]|\\.)*'|\"(?:[^\"\\\n]|\\.)*\"")
 STATUS_PERIOD_S = 1.0  # ~/status: counters that changed are published at most this late
@@ -99,27 +97,18 @@ def scenario_file_problem(path: Path) -> str | None:
     refusal goes back to that peer."""
     if not path.is_file():
         return f"scenario file {path} does not exist" if not path.exists() else f"scenario {path} is not a file"
-    size = path.stat().st_size
-    if size > SCENARIO_FILE_MAX_BYTES:
-        return f"scenario file {path}: {size} bytes, more than a scenario YAML holds ({SCENARIO_FILE_MAX_BYTES})"
-    try:
-        values = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        return f"scenario file {path}: not UTF-8 text"
-    except OSError as error:
-        return f"scenario file {path}: cannot be read ({error.strerror})"
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
-        return f"scenario file {path}: not valid YAML{where}"
-    known = ", ".join(sorted(SCENARIO_FILE_FIELDS))
+    try:  # a regular file of at most CONFIG_MAX_BYTES, UTF-8, YAML without aliases, deep nesting or duplicate keys
+        values = read_yaml(path, source=f"scenario file {path}")
+    except YamlInputError as error:
+        return str(error)
+    known = ", ".join(sorted(SCENARIO_FILE_KEYS))
     if not isinstance(values, dict):
         kind = {str: "text", list: "a list", type(None): "nothing"}.get(type(values), "a single value")
         return f"scenario file {path} is not a scenario: it holds {kind}, not a mapping of the fields {known}"
-    unknown = [key for key in values if not (isinstance(key, str) and key in SCENARIO_FILE_FIELDS)]
+    unknown = [key for key in values if not (isinstance(key, str) and key in SCENARIO_FILE_KEYS)]
     if unknown:
         near = sorted({match for key in unknown if isinstance(key, str)
-                       for match in difflib.get_close_matches(key, SCENARIO_FILE_FIELDS, n=1, cutoff=0.8)})
+                       for match in difflib.get_close_matches(key, SCENARIO_FILE_KEYS, n=1, cutoff=0.8)})
         hint = f" (did you mean {', '.join(near)}?)" if near else ""
         return (f"scenario file {path}: {len(unknown)} of its {len(values)} top-level fields are not scenario "
                 f"fields{hint}; known: {known}")

@@ -10,14 +10,13 @@ path that is a file, ...) is one line on stderr and exit status 2 (:mod:`crop_si
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import os
 from pathlib import Path
 
 import numpy as np
 
 from .model import repeat_parameters, simulate_season
+from .output import output_directory, save_figure_atomic, write_csv_atomic, write_json_atomic
 from .task.scenario import Scenario, get_scenario, load_scenario, scenario_names
 from .usage import UsageError, user_input
 
@@ -48,12 +47,19 @@ def _rates(text: str) -> np.ndarray:
     return rates
 
 
+def is_scenario_path(name_or_path: str) -> bool:
+    """Whether a command's or a node's scenario names a YAML file (it ends in .yaml or .yml, or has a directory
+    in it) rather than a built-in scenario."""
+    name = name_or_path.strip()
+    return name.endswith((".yaml", ".yml")) or os.sep in name
+
+
 def find_scenario(name_or_path: str, data_dir: str | Path | None = None) -> Scenario:
     """A built-in scenario by name, or a scenario YAML file (a path: it ends in .yaml or .yml, or has a
     directory in it), its weather files and crop names checked. Raises UnknownNameError, ValueError or OSError
     (a missing file) naming what is wrong."""
     name = name_or_path.strip()
-    if not (name.endswith((".yaml", ".yml")) or os.sep in name):
+    if not is_scenario_path(name):
         return get_scenario(name, data_dir)
     scenario = load_scenario(Path(name).expanduser(), data_dir)
     for season in scenario.weather.seasons:
@@ -62,24 +68,17 @@ def find_scenario(name_or_path: str, data_dir: str | Path | None = None) -> Scen
     return scenario
 
 
-def output_directory(path: str | Path) -> Path:
-    """``path`` as an output directory, created if needed; UsageError if it cannot be one."""
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"--out: {out} is a file, not a directory")
-    with user_input("--out"):
-        out.mkdir(parents=True, exist_ok=True)
-    if not os.access(out, os.W_OK | os.X_OK):
-        raise UsageError(f"--out: cannot write in {out}")
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     rates = _rates(args.irrigation_mm)
     if args.data_dir is not None and not Path(args.data_dir).is_dir():
         raise UsageError(f"--data-dir: {args.data_dir} is not a directory")
     with user_input("--task"):
         scenario = find_scenario(args.task, args.data_dir)
+    if scenario.limits.quota_mm is not None or scenario.limits.capacity_mm_per_day is not None:
+        raise UsageError(f"--task {scenario.name}: its water is limited (a quota or a pivot's capacity), which "
+                         f"simulate's constant rates ignore; run it with `crop-sim evaluate --task {scenario.name}` "
+                         f"or `crop-sim farm --task {scenario.name}`")
+    with user_input("--task"):
         seasons = scenario.load_seasons()
     if not 0 <= args.season < len(seasons):
         raise UsageError(f"--season: scenario {scenario.name!r} has seasons 0..{len(seasons) - 1}")
@@ -121,17 +120,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"{rate:>7.1f} mm/d {matured:>11} {row['yield_t_ha']:>10.2f} {row['biomass_t_ha']:>12.2f} "
               f"{row['irrigation_mm']:>9.0f} {row['rain_mm']:>8.0f} {row['runoff_mm']:>9.1f} "
               f"{row['drainage_mm']:>8.0f} {row['transpiration_mm']:>10.0f} {row['mean_arid']:>9.3f}")
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    with (out / "season.csv").open("w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(["irrigation_mm_per_day", "date", "days_after_sowing", "thermal_time_degc_d", "fsolar",
-                         "biomass_kg_ha", "yield_kg_ha", "paw_mm", "arid", "et0_mm", "rain_mm", "irrigation_mm"])
-        for i, rate in enumerate(rates):
-            for d in range(days):
-                writer.writerow([rate, weather.dates[d], d, result.thermal_time_degc_d[d, i], result.fsolar[d, i],
-                                 result.biomass_kg_ha[d, i], result.yield_kg_ha[d, i],
-                                 result.plant_available_water_mm[d, i], result.arid[d, i], et0[d],
-                                 result.rain_mm[d, i], result.irrigation_mm[d, i]])
+    write_json_atomic(out / "summary.json", summary, indent=2)
+    write_csv_atomic(out / "season.csv",
+                     ["irrigation_mm_per_day", "date", "days_after_sowing", "thermal_time_degc_d", "fsolar",
+                      "biomass_kg_ha", "yield_kg_ha", "paw_mm", "arid", "et0_mm", "rain_mm", "irrigation_mm"],
+                     ([rate, weather.dates[d], d, result.thermal_time_degc_d[d, i], result.fsolar[d, i],
+                       result.biomass_kg_ha[d, i], result.yield_kg_ha[d, i], result.plant_available_water_mm[d, i],
+                       result.arid[d, i], et0[d], result.rain_mm[d, i], result.irrigation_mm[d, i]]
+                      for i, rate in enumerate(rates) for d in range(days)))
     written = [out / "summary.json", out / "season.csv"]
     if not args.no_plot:
         written.append(_plot(out / "season.png", weather, result, rates, scenario.name))
@@ -161,6 +157,6 @@ def _plot(path: Path, weather, result, rates: np.ndarray, title: str) -> Path:
     axes[0].legend(title="irrigation")
     axes[0].set_title(f"SIMPLE, {title}: {weather.source}")
     figure.tight_layout()
-    figure.savefig(path, dpi=90)
+    save_figure_atomic(figure, path, dpi=90)
     plt.close(figure)
     return path

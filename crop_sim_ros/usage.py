@@ -24,6 +24,27 @@ def one_line(error: BaseException) -> str:
     return "; ".join(line.strip() for line in str(error).splitlines() if line.strip()) or type(error).__name__
 
 
+def check_range(option: str, value: int | float, low: int | float, high: int | float) -> None:
+    """UsageError ``OPTION: VALUE is not in LOW..HIGH`` unless low <= value <= high (a count or a size is checked
+    before anything is allocated for it; NaN is refused too)."""
+    if not low <= value <= high:
+        raise UsageError(f"{option}: {shown(value)} is not in {low}..{high}")
+
+
+def shown(value, limit: int = 40) -> str:
+    """``repr(value)`` for a message, at most ``limit`` characters and ``...`` (reprlib: a long string or a big,
+    deep container is never expanded whole, so a refusal never formats an unbounded value)."""
+    import reprlib
+    short = reprlib.Repr()
+    short.maxstring = short.maxother = limit + 2
+    short.maxlevel, short.maxlist, short.maxtuple, short.maxdict, short.maxset = 2, 6, 6, 4, 6
+    try:
+        text = short.repr(value)
+    except ValueError:  # an integer of more than 4,300 digits
+        text = f"<{type(value).__name__} too long to show>"
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 @contextmanager
 def user_input(what: str | None, errors: tuple[type[BaseException], ...] = (ValueError, KeyError, OSError)):
     """Turn ``errors`` raised while reading the user's ``what`` into a UsageError naming it (None: the

@@ -140,7 +140,7 @@ def simulate_cases(tmp_path: Path) -> dict[str, tuple[list[str], tuple[str, ...]
         "too many generated seasons": ([*scenario, str(tmp_path / "many_seasons.yaml")],
                                        ("weather.n_seasons: 10000000 is not a whole number in 1..10000",)),
         "YAML syntax": ([*scenario, str(tmp_path / "syntax.yaml")], ("syntax.yaml: ", "line 2")),
-        "unknown YAML field": ([*scenario, str(tmp_path / "unknown_field.yaml")], ("scenario.colour: unknown field",)),
+        "unknown YAML field": ([*scenario, str(tmp_path / "unknown_field.yaml")], ("yaml: colour: unknown field (known: ",)),
         "unknown crop": ([*scenario, str(tmp_path / "unknown_crop.yaml")], ("mango",)),
         "missing weather file": ([*scenario, str(tmp_path / "missing_weather.yaml")], ("absent.csv not found",)),
         "missing YAML file": ([*scenario, str(tmp_path / "nowhere.yaml")], ("nowhere.yaml",)),

@@ -83,7 +83,7 @@ def test_a_policy_file_with_other_spaces_is_refused_at_load(tmp_path):
         LearnedPolicy(out / "model.zip")
     config["algorithm"] = "dqn"
     (out / "model.json").write_text(json.dumps(config))
-    with pytest.raises(ValueError, match="algorithm 'dqn' is not one of"):
+    with pytest.raises(ValueError, match="algorithm: Input should be 'ppo', "):
         LearnedPolicy(out / "model.zip")
 
 

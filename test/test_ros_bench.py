@@ -35,4 +35,4 @@ def test_ros_bench_interleaves_baselines_with_the_bridge_days(capsys):
 def test_ros_bench_refuses_a_round_count_below_one(capsys):
     assert main(["ros-bench", "--rounds", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["ros-bench: --rounds must be at least 1, got 0"]
+    assert err == ["crop-sim ros-bench: --rounds: 0 is not in 1..100"]

@@ -68,29 +68,109 @@ def test_configurations_are_the_grid_times_seeded_random_draws():
 
 
 @pytest.mark.parametrize("changes, message", [
-    ({"tasks": []}, "tasks must be a non-empty list"),
-    ({"seeds": [0, 0]}, "seeds must be a non-empty list of distinct integers"),
-    ({"epochs": 3}, "unknown key(s) epochs"),
-    ({"train": {"seed": 3}}, "train may not set seed"),
-    ({"evaluate": {"agents": "x=y"}}, "evaluate may not set agents"),
-    ({"evaluate": {"address": "auto", "cpus": 2}}, "evaluate may not set address, cpus"),
+    ({"tasks": []}, "tasks: List should have at least 1 item"),
+    ({"seeds": [0, 0]}, "seeds: 0 named more than once"),
+    ({"epochs": 3}, "epochs: unknown key; known: name, tasks, seeds"),
+    ({"train": {"seed": 3}}, "train: may not set seed"),
+    ({"evaluate": {"agents": "x=y"}}, "evaluate: may not set agents"),
+    ({"evaluate": {"address": "auto", "cpus": 2}}, "evaluate: may not set address, cpus"),
     ({"train": {"timesteps": "many"}}, "hyperparameter timesteps 'many': Input should be a valid integer"),
     ({"train": {"time-steps": 100}}, "hyperparameter time_steps 100: Extra inputs are not permitted"),
     ({"train": {"algorithm": "td3"}}, "argument --algorithm: invalid choice: 'td3'"),
-    ({"evaluate": {"noise-seeds": [1, 2]}}, "has value [1, 2]; give a number"),
-    ({"grid": {"learning-rate": 3e-4}}, "grid option 'learning-rate' must list its values"),
+    ({"evaluate": {"noise-seeds": [1, 2]}}, "evaluate.noise-seeds: has value [1, 2]; give a number"),
+    ({"grid": {"learning-rate": 3e-4}}, "grid.learning-rate: Input should be a valid list"),
     ({"grid": {"timesteps": [1, 2]}}, "timesteps set in more than one of train / grid / random"),
-    ({"random": {"ent-coef": {"loguniform": [0, 1]}}}, "loguniform needs [low, high] with low < high and low > 0"),
-    ({"random": {"ent-coef": {"gauss": [0, 1]}}}, "random option 'ent-coef' must be one of"),
+    ({"random": {"ent-coef": {"loguniform": [0, 1]}}}, "random.ent-coef.loguniform.0: Input should be greater than 0"),
+    ({"random": {"ent-coef": {"uniform": [1, 1]}}}, "random.ent-coef.uniform: needs [low, high] with low < high"),
+    ({"random": {"ent-coef": {"gauss": [0, 1]}}}, "random.ent-coef: must be one of {uniform: [...]}"),
     ({"samples": 3}, "samples 3 without random options"),
-    ({"retries": -1}, "retries -1 must be an integer in 0..100"),
-    ({"cpus-per-trial": 0}, "cpus-per-trial 0 must be a number in (0, 1024]"),
+    ({"retries": -1}, "retries: Input should be greater than or equal to 0"),
+    ({"cpus-per-trial": 0}, "cpus-per-trial: Input should be greater than 0"),
     ({"seeds": list(range(101)), "grid": {"learning-rate": [1e-4] * 100}}, "trials (tasks x configurations x seeds) is above"),
+    # issue 34: a task twice (one key, one folder for two trials), a path as a task, an unknown or non-family
+    # task, timesteps 0 and unbounded distributions refused before Ray, each with its path
+    ({"tasks": ["benton-quota", "benton-quota"]}, "tasks: benton-quota named more than once"),
+    ({"tasks": ["../benton-quota"]}, "tasks.0: '../benton-quota' is not a task's name (lower-case letters, digits "
+                                     "and '-'; no '/' or other path characters)"),
+    ({"tasks": ["benton-quota", "no-such-task"]}, "tasks.1: unknown task 'no-such-task'; known: benton-2000"),
+    ({"tasks": ["benton-generated"]}, "evaluate on task benton-generated: --task: 'benton-generated' is not a family"),
+    ({"train": {**TINY_TRAIN, "timesteps": 0}}, "hyperparameter timesteps 0: Input should be greater than or equal to 1"),
+    ({"train": {**TINY_TRAIN, "learning-rate": float("inf")}}, "train.learning-rate: has value inf; give a number"),
+    ({"random": {"ent-coef": {"uniform": [-float("inf"), float("inf")]}}},
+     "random.ent-coef.uniform.0: Input should be a finite number; random.ent-coef.uniform.1: Input should be a finite"),
+    ({"random": {"n-epochs": {"randint": [0, 2**80]}}}, "random.n-epochs.randint.1: Input should be less than or equal"),
+    ({"evaluate": {**TINY_EVALUATE, "noise-seeds": 0}}, "evaluate on task benton-quota: --noise-seeds: 0 is not in"),
+    ({"evaluate": {**TINY_EVALUATE, "sets": "nowhere"}}, "evaluate on task benton-quota: --sets: nowhere unknown"),
 ])
 def test_a_bad_configuration_is_refused_naming_what_is_wrong(changes, message):
     with pytest.raises(UsageError) as error:
         spec(**changes)
     assert message in str(error.value)
+
+
+def test_every_problem_of_a_configuration_is_listed_in_one_error_with_its_path():
+    with pytest.raises(UsageError) as error:
+        spec(tasks=["benton-quota", "x/y"], seeds=[-1], retries="a", random={"z": 5})
+    message = str(error.value)
+    assert message.startswith("sweep configuration test.yaml: 4 problems: ") and "\n" not in message
+    for part in ("tasks.1: 'x/y' is not a task's name", "seeds.0: Input should be greater than or equal to 0",
+                 "random.z: must be one of", "retries: Input should be a valid integer"):
+        assert part in message, message
+    # every configuration's bad training setting, not only the first
+    with pytest.raises(UsageError) as error:
+        spec(grid={"learning-rate": [1e-4, -1.0, 0.0]})
+    assert "2 problems: configuration c01 on task benton-quota" in str(error.value)
+    assert "configuration c02 on task benton-quota" in str(error.value)
+
+
+def test_the_trial_count_is_checked_before_any_configuration_is_built(monkeypatch):
+    """Three grid options of 1,000 values are 10**9 configurations: refused at once, by arithmetic."""
+    built = []
+    monkeypatch.setattr(SweepSpec, "_draw_configurations", lambda self: built.append(1) or ())
+    started = time.perf_counter()
+    with pytest.raises(UsageError) as error:
+        spec(grid={name: list(range(1000)) for name in ("a", "b", "c")})
+    assert time.perf_counter() - started < 2.0 and not built
+    assert "1,000,000,000 trials (tasks x configurations x seeds) is above 10,000" in str(error.value)
+    with pytest.raises(UsageError) as error:
+        spec(random={"ent-coef": {"uniform": [0.0, 1.0]}}, samples=10_000, seeds=[0, 1])
+    assert "20,000 trials" in str(error.value) and not built
+
+
+def test_trial_keys_are_unique():
+    planned = spec(tasks=["benton-quota", "benton-sensing"], seeds=[0, 1], grid={"learning-rate": [3e-4, 1e-4]})
+    keys = [t.key for t in planned.trials()]
+    assert len(keys) == 8 and len(set(keys)) == 8
+
+
+class _Result:
+    """What the table takes of a Ray Tune result: its metrics and its error."""
+
+    def __init__(self, stage: str, error=None):
+        self.metrics, self.error = {"stage": stage, "validation_return_usd_ha": 1.0}, error
+
+
+def test_a_trial_is_finished_only_when_its_evaluation_wrote_its_table(tmp_path):
+    """Issue 34: a trial whose evaluation failed was counted finished (exit 0); now its row is failed, the last
+    line counts it and the exit status is 1."""
+    from crop_agent_ros.scale.sweep import summary_line, table_rows
+    trials = spec(seeds=[0, 1, 2, 3]).trials()
+    tables = [tmp_path / "trials" / t.key / "eval" / "table.json" for t in trials]
+    for path in tables:
+        path.parent.mkdir(parents=True)
+    tables[0].write_text(json.dumps({"sets": []}))
+    tables[1].write_text("")                         # a torn or empty table
+    tables[2].write_text(json.dumps(["not", "a", "table"]))
+    # tables[3]: none written
+    rows = table_rows(trials, {t.key: _Result("evaluated") for t in trials}, tmp_path)
+    assert [r["status"] for r in rows] == ["finished", "failed", "failed", "failed"]
+    assert "table.json is unreadable" in rows[1]["error"] and "holds no table" in rows[2]["error"]
+    assert "wrote no table (table.json is missing)" in rows[3]["error"]
+    line, status = summary_line("t", rows, tmp_path)
+    assert status == 1 and "\n" not in line
+    assert line.startswith("sweep t: 1/4 trials finished; 3 FAILED: benton-quota-c00-s1, benton-quota-c00-s2, ")
+    everything, status = summary_line("t", rows[:1], tmp_path)
+    assert status == 0 and everything.startswith("sweep t: 1/1 trials finished; wrote ")
 
 
 def test_the_command_refuses_a_bad_configuration_or_address_in_one_line_before_starting_ray(tmp_path):
@@ -110,6 +190,24 @@ def test_the_command_refuses_a_bad_configuration_or_address_in_one_line_before_s
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("crop-sim sweep: ") and message in lines[0], result.stderr
         assert not (tmp_path / "runs").exists()
+
+
+def test_a_sweep_file_is_read_bounded_refusing_aliases_and_non_regular_files(tmp_path, capsys):
+    """Issue 34: a few hundred bytes of nested aliases exhausted memory; a FIFO hung the reader."""
+    from crop_agent_ros.cli import main
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{c}: &{c} [*{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}]\n" for p, c in zip("abcdefgh", "bcdefghi"))
+        + "tasks: [benton-quota]\ntrain: {timesteps: *i}\n")
+    fifo = tmp_path / "fifo.yaml"
+    os.mkfifo(fifo)
+    for path, message in ((bomb, "YAML anchors and aliases (& and *) are not allowed"),
+                          (fifo, "not a regular file")):
+        started = time.perf_counter()
+        assert main(["sweep", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert time.perf_counter() - started < 5.0
+        assert err.count("\n") == 1 and err.startswith(f"crop-sim sweep: sweep configuration {path}") and message in err
 
 
 # --- real sweeps on Ray (inside a loopback-only namespace) -----------------------------------------------
@@ -137,10 +235,13 @@ def wait_for(predicate, timeout: float, what: str) -> None:
 
 @pytest.mark.slow
 def test_a_sweep_on_a_local_instance_writes_a_row_per_trial_finished_or_failed(tmp_path):
-    # a learning rate of 1e30 is a valid setting whose training diverges: its trials fail at run time
-    config = write_config(tmp_path, seeds=[0, 1], grid={"learning-rate": [3e-4, 1e30]}, retries=0,
+    # configuration c01's trials fail at run time: a file stands where their training's folder goes
+    config = write_config(tmp_path, seeds=[0, 1], grid={"learning-rate": [3e-4, 1e-4]}, retries=0,
                           evaluate={**TINY_EVALUATE, "oracle": True})
     out = tmp_path / "out"
+    for seed in (0, 1):
+        (out / "trials" / f"benton-quota-c01-s{seed}").mkdir(parents=True)
+        (out / "trials" / f"benton-quota-c01-s{seed}" / "run").write_text("not a folder\n")
     with LoopbackNamespace() as ns:
         result = ns.run([CROP_SIM, "sweep", str(config), "--out", str(out), "--cpus", "2"], timeout=600, cwd=tmp_path)
     assert result.returncode == 1, result.stderr[-3000:]       # some trials failed for good
@@ -150,7 +251,7 @@ def test_a_sweep_on_a_local_instance_writes_a_row_per_trial_finished_or_failed(t
     assert list(table) == ["benton-quota-c00-s0", "benton-quota-c00-s1", "benton-quota-c01-s0", "benton-quota-c01-s1"]
     for key in ("benton-quota-c01-s0", "benton-quota-c01-s1"):
         assert table[key]["status"] == "failed"
-        assert table[key]["error"], table[key]
+        assert "crop-sim train: --out: " in table[key]["error"] and "is a file, not a folder" in table[key]["error"]
         assert table[key]["attempts"] == "1"
     for key, seed in (("benton-quota-c00-s0", 0), ("benton-quota-c00-s1", 1)):
         row = table[key]

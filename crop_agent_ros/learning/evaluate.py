@@ -16,15 +16,14 @@ line on stderr and exit status 2.
 
 from __future__ import annotations
 
-import csv
-import json
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from crop_sim_ros.usage import UsageError, user_input
+from crop_sim_ros.output import output_directory, save_figure_atomic, write_csv_atomic, write_json_atomic
+from crop_sim_ros.usage import UsageError, shown, user_input
 
 DEFAULT_POLICIES = "zero,constant10,best-constant,refill,ppo,oracle"
 # the hand-made baselines PPO must beat (margin<mm>, the PPO policy's own starting point, is reported apart)
@@ -54,7 +53,7 @@ def parse_seeds(text: str) -> list[int]:
         if ".." in text:
             low, high = (int(part) for part in text.split("..", 1))
             if low > high:
-                raise UsageError(f"--seeds: {text!r} runs backwards; write {high}..{low}")
+                raise UsageError(f"--seeds: {shown(text)} runs backwards; write {high}..{low}")
             count = high - low + 1
             seeds = range(low, high + 1)
         else:
@@ -63,9 +62,10 @@ def parse_seeds(text: str) -> list[int]:
     except ValueError as error:
         if isinstance(error, UsageError):
             raise
-        raise UsageError(f"--seeds: {text!r} is neither 'A..B' nor a comma-separated list of whole numbers") from None
+        raise UsageError(f"--seeds: {shown(text)} is neither 'A..B' nor a comma-separated list of whole "
+                         "numbers") from None
     if count == 0:
-        raise UsageError(f"--seeds: no seeds in {text!r}")
+        raise UsageError(f"--seeds: no seeds in {shown(text)}")
     if count > MAX_SEEDS:
         raise UsageError(f"--seeds: {count} seeds; at most {MAX_SEEDS}")
     if min(seeds) < 0:
@@ -194,21 +194,45 @@ def plot_policy(name: str, episodes, context, path: Path) -> None:
     axes[2].set_xlabel("days since sowing")
     axes[2].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure_atomic(fig, path, dpi=110)
     plt.close(fig)
 
 
+# the options of this evaluation (--policies ...); the others (but --out) are the family protocol's (--task)
+POLICY_OPTIONS = ("policies", "seasons", "seeds", "ppo_path", "no_plots")
+
+
+def _refuse_options_of_the_other_protocol(args) -> None:
+    """UsageError naming an option given (not at its default) that the chosen evaluation would ignore: --seeds,
+    --policies, ... with --task; --agents, --noise-seeds, ... without it."""
+    import argparse
+    parser = argparse.ArgumentParser(add_help=False)
+    add_arguments(parser)
+    defaults = vars(parser.parse_args([]))
+    with_task = args.task is not None
+    for dest, default in defaults.items():
+        if dest in ("task", "out") or (dest in POLICY_OPTIONS) != with_task or getattr(args, dest) == default:
+            continue
+        flag = "--" + ("no-" if default is True else "") + dest.replace("_", "-")
+        if with_task:
+            raise UsageError(f"{flag}: not used with --task (the family protocol evaluates --agents with "
+                             "--noise-seeds K on its own sets)")
+        if dest in ("address", "cpus"):
+            raise UsageError(f"{flag}: Ray runs the family protocol (--task TASK); this evaluation (--policies) runs "
+                             "in this process")
+        raise UsageError(f"{flag}: an option of the family protocol (--task TASK), not of this evaluation "
+                         "(--policies)")
+
+
 def run(args) -> int:
+    _refuse_options_of_the_other_protocol(args)
     if args.task is not None:
         from .evaluate_task import run_task
         run_task(args)
         return 0
-    if args.address is not None or args.cpus is not None:
-        raise UsageError(f"{'--address' if args.address is not None else '--cpus'}: Ray runs the family protocol "
-                         "(--task TASK); this evaluation (--policies) runs in this process")
     if args.out is None:
         args.out = Path("runs/evaluate")
-    from crop_sim_ros.simulate import find_scenario, output_directory
+    from crop_sim_ros.simulate import find_scenario
     from crop_sim_ros.task.core import scenario_table
     names = [n.strip() for n in args.policies.split(",") if n.strip()]
     seeds = parse_seeds(args.seeds)
@@ -241,16 +265,13 @@ def run(args) -> int:
                     "refinement_gain_over_family": r.refinement_gain, "family": r.family_parameters,
                     "yield_t_ha": r.yield_t_ha, "irrigation_mm": r.water_mm, "evaluations": r.evaluations}
                    for c, r in zip(contexts, oracle_results)]
-    with open(out / "evaluation.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    (out / "evaluation.json").write_text(json.dumps({
+    write_csv_atomic(out / "evaluation.csv", list(rows[0]), rows)
+    write_json_atomic(out / "evaluation.json", {
         "command": "crop-sim " + " ".join(sys.argv[1:]) if sys.argv and "crop" in sys.argv[0] else None,
         "policies": names, "scenario": args.seasons, "seeds": seeds, "ppo_path": args.ppo_path,
         "water_productivity": "yield kg/ha per m3/ha of irrigation + rain from sowing to harvest",
         "summary": summary, "best_rule": best_rule, "paired_differences": comparisons, "oracle": oracle_info},
-        indent=2) + "\n")
+        indent=2)
     if not args.no_plots:
         for name, runs in episodes.items():
             plot_policy(name, runs[0], contexts[0], out / f"{name.replace(':', '_').replace('/', '_')}.png")

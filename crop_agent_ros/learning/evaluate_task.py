@@ -78,6 +78,8 @@ from pathlib import Path
 
 import numpy as np
 
+from crop_sim_ros.output import (check_output_directory, output_directory, save_figure_atomic, write_csv_atomic,
+                                 write_json_atomic, write_text_atomic)
 from crop_sim_ros.usage import UsageError, user_input
 
 from ..scale.evaluate_units import LOCAL_RAY, run_on_ray
@@ -93,6 +95,7 @@ MARICOPA = ("maricopa-generated", "maricopa-real")
 MARICOPA_LATE = ("maricopa-late-generated", "maricopa-late-real")
 MARICOPA_BLIND = "maricopa-march15-generated"
 RULE = "budget-rule"
+PACED = "paced-rule"        # the paced rule (issue 33): a second rule row where family_<task>-paced.json exists
 KINDS = ("oracle", "rule", "agent", "early")
 MAX_NOISE_SEEDS = 1_000
 # The oracle plans a unit's seasons side by side (12 seasons at once: 1.2 s a season; one at a time: 3.3 s);
@@ -313,6 +316,7 @@ def run_checkpoints(directory: Path, what: str) -> tuple[tuple[int, Path], ...]:
 def agent_runs(specs: list[str], task_name: str) -> dict[str, list[AgentRun]]:
     """The groups of ``--agents NAME=GLOB`` (UsageError names a malformed spec, a pattern matching no run, a
     run without a final model, a run of another task, or two runs of one training seed in a group)."""
+    from ..policies.learned import check_agent_task, read_agent_config
     groups: dict[str, list[AgentRun]] = {}
     for spec in specs:
         name, sep, pattern = spec.partition("=")
@@ -330,10 +334,10 @@ def agent_runs(specs: list[str], task_name: str) -> dict[str, list[AgentRun]]:
             if not (directory / "model.zip").is_file() or not (directory / "model.json").is_file():
                 raise UsageError(f"{what}: {directory} holds no model.zip + model.json (a finished "
                                  "`crop-sim train --task` run)")
-            config = _read_config(directory / "model.json", what)
-            if config.get("task") != task_name:
-                raise UsageError(f"{what}: {directory} was trained on {config.get('task')!r}, not {task_name!r}")
-            runs.append(AgentRun(name, directory, int(config.get("seed", -1)), run_checkpoints(directory, what)))
+            with user_input(what):  # model.json validated (types, ranges, scaler), and of this task
+                config = read_agent_config(directory / "model.json")
+                check_agent_task(config, task_name, str(directory))
+            runs.append(AgentRun(name, directory, config.seed, run_checkpoints(directory, what)))
         seeds = [run.seed for run in runs]
         if len(set(seeds)) != len(seeds):
             raise UsageError(f"--agents {name}: training seeds {seeds} repeat; a group holds one run per seed")
@@ -358,6 +362,18 @@ def the_rule(task, args, log):
     family_tuning.write_tuned(task.name, result)
     return family_tuning.tuned_rule(task.name), {"file": str(path), "tuned_now": True,
                                                  "tuned_on_seasons": seasons.tolist()}
+
+
+def the_paced_rule(task, log):
+    """The paced rule tuned for ``task`` (``crop-sim tune-rule --rule paced-rule``) and its file, or (None, None)
+    where it has none (the output says so); a malformed file is refused in one line."""
+    from ..policies import family_tuning
+    path = family_tuning.family_file(task.name, PACED)
+    if not path.is_file():
+        log(f"no {PACED} row: {path.name} is missing (`crop-sim tune-rule --task {task.name} --rule {PACED}`)")
+        return None, None
+    with user_input(f"tuned rule {path}", (ValueError, KeyError, TypeError, OSError)):
+        return family_tuning.tuned_rule(task.name, PACED), {"file": str(path), "tuned_now": False}
 
 
 def plan_units(sets: list[EvaluationSet], agent_keys: list[str], curve_keys: list[str], noise_seeds: int,
@@ -439,11 +455,8 @@ class OracleCache:
                           {"node": "oracle cache", "pid": 0})
 
     def put(self, key: str, result: UnitResult) -> None:
-        path = self.folder / f"{key}.json"
-        temporary = path.with_suffix(f".{os.getpid()}.tmp")
-        temporary.write_text(json.dumps(_plain({"returns": result.returns, "plans": result.plans})),
-                             encoding="utf-8")
-        os.replace(temporary, path)
+        write_json_atomic(self.folder / f"{key}.json", _plain({"returns": result.returns, "plans": result.plans}),
+                          indent=None)
 
 
 # --- statistics ------------------------------------------------------------------------------------------
@@ -554,7 +567,7 @@ def compare(evaluated: list[Evaluated], reference: np.ndarray, resamples: Resamp
             notes.append("hindsight upper bound (plans knowing the season's weather)")
         elif e.kind == "rule":
             headroom = row["regret_pct_of_reference"]
-            notes.append("the best tuned rule; " + (
+            notes.append(("the paced rule (issue 33); " if e.name == PACED else "the best tuned rule; ") + (
                 f"headroom: regret {headroom:.1f} % of the oracle's return "
                 + ("(>= " if headroom >= HEADROOM_PCT else "(NOT >= ") + f"{HEADROOM_PCT:g} %)" if with_oracle
                 else "headroom unknown without the oracle"))
@@ -675,8 +688,7 @@ def run_task(args) -> dict:
     _check_arguments(args)
     task = _task(args.task)
     out = Path(args.out) if getattr(args, "out", None) else Path("runs") / f"eval-{task.name}"
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"--out: {out} exists and is not a directory")
+    check_output_directory(out)
     with user_input("--far-seasons", (ValueError,)):
         sets, positions = _chosen_sets(evaluation_sets(task, args.far_seasons, args.far_seed), args.sets)
     groups = agent_runs(args.agents, task.name)
@@ -687,6 +699,8 @@ def run_task(args) -> dict:
             raise UsageError("--oracle: the family oracle (crop_agent_ros/policies/family_oracle.py) is not "
                              "available; --no-oracle reports gaps to the best evaluated policy instead") from None
     rule, rule_info = the_rule(task, args, log)
+    paced, paced_info = the_paced_rule(task, log)
+    rules = {RULE: rule, **({PACED: paced} if paced is not None else {})}
     agent_files = {str(path): name for runs in groups.values() for run in runs
                    for path, name in ((run.final, run.group), (run.early, f"{run.group}-1%")) if path is not None}
     with_curves = bool(args.curves and groups and any(s.name == HELD_OUT_REAL for s in sets))
@@ -696,11 +710,12 @@ def run_task(args) -> dict:
                    if with_curves and str(path) not in agent_files}
     # every policy is loaded here first: a broken file is the user's, before any unit runs
     agent_names = {**agent_files, **curve_files}
-    policies = {RULE: rule, **{key: load_agent(Path(key), name) for key, name in agent_names.items()}}
+    policies = {**rules, **{key: load_agent(Path(key), name) for key, name in agent_names.items()}}
     terms = [set_terms(evaluation_set, args.terms_seed + position) for evaluation_set, position in zip(sets, positions)]
-    units = plan_units(sets, list(agent_files), list(curve_files), args.noise_seeds, args.oracle)
+    units = plan_units(sets, [key for key in rules if key != RULE] + list(agent_files), list(curve_files),
+                       args.noise_seeds, args.oracle)
     wall = {"setup_s": time.perf_counter() - started}
-    out.mkdir(parents=True, exist_ok=True)
+    output_directory(out)
     t0 = time.perf_counter()
     cache = OracleCache(args.oracle_cache) if args.oracle_cache is not None else None
     cached = {}
@@ -714,7 +729,7 @@ def run_task(args) -> dict:
         ran = run_units_here(to_run, sets, terms, policies, log)
         where, cluster_nodes = None, []
     else:
-        sources = {RULE: rule, **{key: AgentFile.read(Path(key), name) for key, name in agent_names.items()}}
+        sources = {**rules, **{key: AgentFile.read(Path(key), name) for key, name in agent_names.items()}}
         ran, cluster = run_on_ray(to_run, sets, terms, sources, args.address, args.cpus, log)
         where, cluster_nodes = cluster.address, list(cluster.nodes)
     if cache is not None:
@@ -742,6 +757,8 @@ def run_task(args) -> dict:
             plans = [plan for chunk in chunks for plan in chunk.plans]
             evaluated.append(Evaluated(ORACLE, "oracle", np.broadcast_to(oracle[None, :, None], (1, m, k)).copy()))
         evaluated.append(Evaluated(RULE, "rule", returns_of(index, RULE)[None]))
+        if paced is not None:
+            evaluated.append(Evaluated(PACED, "rule", returns_of(index, PACED)[None]))
         for group, runs in groups.items():
             seeds = tuple(run.seed for run in runs)
             has_early = all(run.early is not None for run in runs)
@@ -789,6 +806,7 @@ def run_task(args) -> dict:
                   "noise_seeds": list(range(args.noise_seeds)), "bootstrap_seed": args.bootstrap_seed,
                   "bootstrap_resamples": args.bootstrap, "oracle_noise_seed": 0},
         "rule": {**rule_info, **rule.describe()},
+        **({"paced_rule": {**paced_info, **paced.describe()}} if paced is not None else {}),
         "agents": {group: [{"directory": str(run.directory), "training_seed": run.seed,
                             "checkpoints": [[steps, str(path)] for steps, path in run.checkpoints]} for run in runs]
                    for group, runs in groups.items()},
@@ -839,20 +857,14 @@ def _log(message: str) -> None:
 def write_outputs(out: Path, result: dict, rows: list[dict], curves: list[dict]) -> None:
     from .summary import recorded_runs, write_summary
     table = _plain(result)
-    (out / "table.json").write_text(json.dumps(table, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    write_json_atomic(out / "table.json", table, allow_nan=False)
     # the leaderboard's compact copy (results/summaries/<evaluation>.json is this file)
     write_summary(out / "summary.json", table, recorded_runs(table))
-    with open(out / "table.csv", "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
-        writer.writeheader()
-        writer.writerows(rows)
-    (out / "table.md").write_text(markdown(result), encoding="utf-8")
+    write_csv_atomic(out / "table.csv", CSV_COLUMNS, rows)
+    write_text_atomic(out / "table.md", markdown(result))
     plot_regret(out / "regret.png", result)
     if curves:
-        with open(out / "learning_curves.csv", "w", newline="", encoding="utf-8") as f:
-            writer = csv.DictWriter(f, fieldnames=list(curves[0]))
-            writer.writeheader()
-            writer.writerows(curves)
+        write_csv_atomic(out / "learning_curves.csv", list(curves[0]), curves)
         rule_regret = next(r for s in result["sets"] if s["name"] == HELD_OUT_REAL for r in s["rows"]
                            if r["kind"] == "rule")["regret_usd_ha"]
         plot_learning_curves(out / "learning_curves.png", curves, rule_regret, result)
@@ -932,7 +944,7 @@ def plot_regret(path: Path, result: dict) -> None:
     axes[0][0].set_ylabel(f"{word}, USD/ha (95 % CI)")
     fig.suptitle(f"{result['task']}: {word} per evaluation set", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure_atomic(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -957,7 +969,7 @@ def plot_learning_curves(path: Path, curves: list[dict], rule_regret: float, res
     ax.set_title(f"{result['task']}: learning curves on the held-out real seasons", fontsize=10)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure_atomic(fig, path, dpi=120)
     plt.close(fig)
 
 

@@ -5,7 +5,8 @@ to its settings; ``default`` holds the algorithm's recipe for a family task with
 values in those files are the settings that produced the published agents (``test/test_hyperparameters.py``
 compares them with the agents' recorded settings). ``--hyperparams key=value`` overrides one setting (the value
 read as YAML: ``net_arch=[64,64]``, ``paw_filter=true``). Each recipe is checked by a pydantic model (unknown
-key, wrong type or a value out of range: :class:`~crop_sim_ros.usage.UsageError`, one line).
+key, wrong type, a value out of range, infinite or NaN: :class:`~crop_sim_ros.usage.UsageError`, one line listing
+every problem). Every size is bounded (a network's layers, too), so a typo cannot ask for gigabytes.
 
 Units: ``timesteps`` and ``eval_freq`` count field-days (environment steps of one field); learning rates are
 per update (Adam's step; for ES the step on the parameters themselves).
@@ -15,32 +16,37 @@ from __future__ import annotations
 
 import re
 from importlib import resources
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from crop_sim_ros.usage import UsageError
+from crop_sim_ros.usage import UsageError, shown
 
 ALGORITHMS = ("ppo", "es", "grpo")
 DEFAULT_ENTRY = "default"
 # Upper bounds of what a user may ask of training (refused above them)
 MAX_TIMESTEPS = 1_000_000_000
 MAX_TRAINING_FIELDS = 100_000
+MAX_LAYER_WIDTH = 4096  # units of one hidden layer (two of 100,000 asked for a 40 GB allocation)
+MAX_LAYERS = 16
 
 PositiveSteps = Field(ge=1, le=MAX_TIMESTEPS)
+LayerWidth = Annotated[int, Field(ge=1, le=MAX_LAYER_WIDTH)]
+# every model: unknown keys refused, no coercion (a string or a bool is not a number), no inf or NaN
+STRICT = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
 
 
 class Recipe(BaseModel):
     """What every algorithm's run has: its budget, its checkpoints' validation and the network's size."""
 
-    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+    model_config = STRICT
 
     timesteps: int = PositiveSteps
     eval_freq: int = PositiveSteps
     validation_seasons: int = Field(ge=1, le=10_000)
-    net_arch: tuple[int, ...] = Field(min_length=1)
-    learning_rate: float = Field(gt=0)
-    final_learning_rate: float = Field(ge=0)
+    net_arch: tuple[LayerWidth, ...] = Field(min_length=1, max_length=MAX_LAYERS)  # units per hidden layer
+    learning_rate: float = Field(gt=0, le=1)  # per update
+    final_learning_rate: float = Field(ge=0, le=1)  # per update, at the end of the linear decay
 
     def record(self) -> dict:
         """The settings as a run records them (plain JSON types)."""
@@ -50,15 +56,17 @@ class Recipe(BaseModel):
 class GradientSettings(BaseModel):
     """PPO's update (Stable-Baselines3's names and meanings)."""
 
+    model_config = STRICT
+
     n_envs: int = Field(ge=1, le=MAX_TRAINING_FIELDS)
     n_steps: int = Field(ge=1, le=100_000)
     batch_size: int = Field(ge=2, le=10_000_000)
     n_epochs: int = Field(ge=1, le=1_000)
     gamma: float = Field(gt=0, le=1)
     gae_lambda: float = Field(ge=0, le=1)
-    clip_range: float = Field(gt=0)
-    ent_coef: float = Field(ge=0)
-    log_std_init: float
+    clip_range: float = Field(gt=0, le=10)
+    ent_coef: float = Field(ge=0, le=10)
+    log_std_init: float = Field(ge=-20, le=5)  # log of the action noise's std (action units)
 
 
 class PaperPPO(GradientSettings, Recipe):
@@ -69,9 +77,9 @@ class PaperPPO(GradientSettings, Recipe):
     eval_seeds: int = Field(ge=1, le=1_000)
     action_mode: Literal["mm", "target", "margin", "demand"]
     feature_set: Literal["full", "compact", "phenology"]
-    margin_center_mm: float
-    margin_span_mm: float = Field(gt=0)
-    demand_span: float = Field(gt=0)
+    margin_center_mm: float = Field(ge=-100, le=100)
+    margin_span_mm: float = Field(gt=0, le=500)
+    demand_span: float = Field(gt=0, le=100)
     reward_shaping: Literal["none", "biomass"]
 
 
@@ -101,8 +109,8 @@ class GroupRelativePPO(FamilyRecipe):
 
     batch_size: int = Field(ge=2, le=10_000_000)
     n_epochs: int = Field(ge=1, le=1_000)
-    clip_range: float = Field(gt=0)
-    log_std_init: float
+    clip_range: float = Field(gt=0, le=10)
+    log_std_init: float = Field(ge=-20, le=5)
     groups: int = Field(ge=1, le=1_000)  # (distinct seasons of the pool, like ES's seasons)
     group_size: int = Field(ge=2, le=1_000)
 
@@ -123,24 +131,28 @@ def recipe_file(algorithm: str):
 
 def recipes(algorithm: str) -> dict[str, dict]:
     """Every entry of ``algorithm``'s file, task name -> settings, as written (anchors merged)."""
-    import yaml
-    entries = yaml.safe_load(recipe_file(algorithm).read_text(encoding="utf-8"))
+    from crop_sim_ros.safe_yaml import read_yaml
+    with resources.as_file(recipe_file(algorithm)) as path:
+        entries = read_yaml(path, aliases=True)  # the project's own file: its anchors share settings
     return {name: dict(settings) for name, settings in entries.items() if not name.startswith(".")}
 
 
 def parse_overrides(pairs: list[str]) -> dict:
     """``["learning_rate=3e-4", "net_arch=[32,32]"]`` -> ``{"learning_rate": 0.0003, "net_arch": [32, 32]}``
-    (each value read as YAML; UsageError for an item without ``=``)."""
-    import yaml
+    (each value read as YAML by :mod:`crop_sim_ros.safe_yaml`, or kept as text where it is not YAML; UsageError for
+    an item without ``=`` and for YAML it refuses: aliases, deep nesting, duplicate keys)."""
+    from crop_sim_ros.safe_yaml import YamlInputError, YamlSyntaxError, loads
     overrides = {}
     for item in pairs:
         key, sep, text = item.partition("=")
         if not sep or not key.strip():
-            raise UsageError(f"--hyperparams {item!r}: give KEY=VALUE, e.g. learning_rate=3e-4")
+            raise UsageError(f"--hyperparams {shown(item)}: give KEY=VALUE, e.g. learning_rate=3e-4")
         try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError:
+            value = loads(text, f"--hyperparams {shown(key.strip())}")
+        except YamlSyntaxError:
             value = text
+        except YamlInputError as error:
+            raise UsageError(str(error)) from None
         overrides[key.strip()] = value
     return overrides
 
@@ -179,9 +191,20 @@ def resolve(task: str, algorithm: str, family_task: bool, overrides: dict | None
     try:
         return model(**merged)
     except ValidationError as error:
-        first = error.errors()[0]
-        where = ".".join(str(part) for part in first["loc"]) or "settings"
-        given = f" {first['input']!r}" if first["type"] != "missing" else ""
-        known = ", ".join(model.model_fields)
-        hint = f" (known: {known})" if first["type"] == "extra_forbidden" else ""
-        raise UsageError(f"hyperparameter {where}{given}: {first['msg']}{hint}") from None
+        raise UsageError(_problems(error, model)) from None
+
+
+def _problems(error: ValidationError, model: type[Recipe]) -> str:
+    """Every problem of ``error`` on one line: ``hyperparameter KEY VALUE: what`` (the value cut short)."""
+    problems = []
+    errors = error.errors()
+    locations = [problem["loc"] for problem in errors]
+    for problem in errors:
+        loc = problem["loc"]
+        if any(len(other) > len(loc) and other[:len(loc)] == loc for other in locations):
+            continue  # a list whose item was refused: the item's problem says it
+        where = ".".join(str(part) for part in problem["loc"]) or "settings"
+        given = "" if problem["type"] == "missing" else " " + shown(problem["input"])
+        hint = f" (known: {', '.join(model.model_fields)})" if problem["type"] == "extra_forbidden" else ""
+        problems.append(f"hyperparameter {where}{given}: {problem['msg']}{hint}")
+    return "; ".join(problems)

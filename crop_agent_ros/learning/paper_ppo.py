@@ -22,13 +22,14 @@ defaults and seed 0.
 
 from __future__ import annotations
 
-import csv
-import json
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from crop_sim_ros.output import output_directory, replace_atomically, save_figure_atomic, write_csv_atomic, \
+    write_json_atomic
 
 from .training_support import package_versions, seconds_since_launch, silent_logger, validation_scenario
 
@@ -125,7 +126,7 @@ def plot_curve(rows: list[dict], path: Path, title: str) -> None:
     axes[1].legend(fontsize=8)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure_atomic(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -161,7 +162,7 @@ def train(task: str, seed: int, out: Path, settings, progress: bool = True) -> d
 
     scenario = scenario_of(task)
     check_training_scenario(scenario)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_directory(out)
     net_arch = list(settings.net_arch)
     hyper = settings.record()
 
@@ -248,7 +249,7 @@ def train(task: str, seed: int, out: Path, settings, progress: bool = True) -> d
             heldout_returns.append(ret)
             if vret.mean() > best["validation_return"]:
                 best.update(validation_return=float(vret.mean()), timesteps=int(self.num_timesteps))
-                self.model.save(out / "best_validation_model.zip")
+                replace_atomically(out / "best_validation_model.zip", self.model.save)
             print(f"[{row['timesteps']:>9}] {row['wall_s']:>7.1f} s  validation - refill "
                   f"{row['validation_minus_refill']:+.4f}  held-out - refill {ret.mean() - r_ref.mean():+.4f} t/ha",
                   file=sys.stderr, flush=True)
@@ -258,7 +259,7 @@ def train(task: str, seed: int, out: Path, settings, progress: bool = True) -> d
     model.learn(total_timesteps=settings.timesteps, callback=callback, progress_bar=progress)
     wall = time.perf_counter() - started
     steps_run = int(model.num_timesteps)  # whole rollouts of n_steps x n_envs: at least --timesteps
-    model.save(out / "model.zip")
+    replace_atomically(out / "model.zip", model.save)
     oracle_started = time.perf_counter()
     oracle = OraclePolicy()
     oracle.begin_season(heldout_contexts)
@@ -271,14 +272,11 @@ def train(task: str, seed: int, out: Path, settings, progress: bool = True) -> d
                      "feature_version": FEATURE_VERSION, "n_features": FEATURE_SETS[settings.feature_set],
                      "trained_on": scenario.name, "seed": seed, "timesteps": settings.timesteps,
                      "note": "deterministic actions; features and action mapping: crop_agent_ros.policies.sb3"}
-    (out / "model.json").write_text(json.dumps(policy_config, indent=2) + "\n")
+    write_json_atomic(out / "model.json", policy_config, indent=2)
     if (out / "best_validation_model.zip").exists():
-        (out / "best_validation_model.json").write_text(json.dumps(
-            {**policy_config, "timesteps_at_save": best["timesteps"]}, indent=2) + "\n")
-    with open(out / "learning_curve.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+        write_json_atomic(out / "best_validation_model.json", {**policy_config, "timesteps_at_save": best["timesteps"]},
+                          indent=2)
+    write_csv_atomic(out / "learning_curve.csv", list(rows[0]), rows)
     plot_curve(rows, out / "learning_curve.png", f"PPO on {scenario.name}, seed {seed}")
     config = {"command": "crop-sim " + " ".join(sys.argv[1:]), "task": scenario.name, "algorithm": "ppo",
               "seed": seed, "scenario": scenario.name, "training_weather": {
@@ -296,7 +294,7 @@ def train(task: str, seed: int, out: Path, settings, progress: bool = True) -> d
               "startup_wall_cpu_s": {name: [round(wall, 2), round(cpu, 2)] for name, (wall, cpu) in startup.items()},
               "torch_threads": torch.get_num_threads(),
               "best_validation": best, "final": rows[-1], "versions": package_versions()}
-    (out / "config.json").write_text(json.dumps(config, indent=2, default=str) + "\n")
+    write_json_atomic(out / "config.json", config, indent=2, default=str)
     print(f"trained {steps_run} steps ({settings.timesteps} asked; PPO runs whole rollouts of {settings.n_steps} x "
           f"{settings.n_envs} steps) in {wall - evaluation_s[0]:.1f} s of training, plus {evaluation_s[0]:.1f} s in "
           f"{len(rows)} evaluations and {oracle_s:.1f} s planning the held-out oracle; training started "

@@ -194,4 +194,5 @@ def dumps(value, indent: int = 0) -> str:
 
 def write_summary(path: Path, table: dict, run_summaries: Mapping[str, dict] | None = None) -> None:
     """Write :func:`summary` of ``table`` to ``path``."""
-    Path(path).write_text(dumps(summary(table, run_summaries)) + "\n", encoding="utf-8")
+    from crop_sim_ros.output import write_text_atomic
+    write_text_atomic(path, dumps(summary(table, run_summaries)) + "\n")

@@ -54,6 +54,8 @@ def run(args) -> int:
                           "hyperparams": settings.record()}, indent=1))
         return 0
     out = args.out if args.out is not None else Path("runs") / f"{scenario.name}-{args.algorithm}-s{args.seed}"
+    from crop_sim_ros.output import check_output_directory
+    check_output_directory(out)  # before the training: a file, under a file, /proc, read-only: one line
     progress = not args.no_progress
     if scenario.is_family_task:
         from .train_task import train_task

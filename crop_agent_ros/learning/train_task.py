@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from crop_sim_ros.output import output_directory, replace_atomically, write_csv_atomic, write_json_atomic
+
 from .agent import ACTION_SCALE_MM, AgentInterface, ObservationScaler
 from .training_support import silent_logger, validation_scenario
 
@@ -113,10 +115,10 @@ def select_model(out: Path) -> dict:
     source = out / f"checkpoint_{steps:09d}.zip"
     if not source.exists():  # the last evaluation is the final model's
         source = out / "final_model.zip"
-    shutil.copyfile(source, out / "model.zip")
+    replace_atomically(out / "model.zip", lambda temporary: shutil.copyfile(source, temporary))
     config = json.loads(source.with_suffix(".json").read_text())
     config["selected_by"] = "best validation return of the run's checkpoints (generated seasons, unused seed)"
-    (out / "model.json").write_text(json.dumps(config, indent=1) + "\n")
+    write_json_atomic(out / "model.json", config)
     return {"timesteps": steps, "validation_return": float(best["validation_return"]), "file": source.name}
 
 
@@ -136,8 +138,7 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
     if scenario.weather.kind not in TRAINING_KINDS:
         raise UsageError(f"refusing to train on {scenario.name!r}: training uses generated seasons only (real "
                          "seasons and the held-out climate are for evaluation)")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_directory(out)
     params = core.task_params(scenario)
     scaler = fit_scaler(scenario, seed)
     net_arch = list(settings.net_arch)
@@ -175,9 +176,8 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
               "hyper_parameters": settings.record()}
 
     def save(model_, name: str, at: int) -> Path:
-        path = out / f"{name}.zip"
-        model_.save(path)
-        path.with_suffix(".json").write_text(json.dumps({**config, "timesteps_at_save": at}, indent=1) + "\n")
+        path = replace_atomically(out / f"{name}.zip", model_.save)
+        write_json_atomic(path.with_suffix(".json"), {**config, "timesteps_at_save": at})
         return path
 
     rows: list[dict] = []
@@ -241,15 +241,12 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
     training_s = time.perf_counter() - started
     checkpoint(model, steps_run)
     save(model, "final_model", steps_run)
-    with open(out / "learning_curve.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv_atomic(out / "learning_curve.csv", list(rows[0]), rows)
     selected = select_model(out)
     summary = {**config, "steps_run": steps_run, "selected": selected, "training_wall_s": round(training_s, 1),
                "total_wall_s": round(time.perf_counter() - launched, 1), "default_rule_validation_return": rule_return,
                "final": rows[-1], "command": "crop-sim " + " ".join(sys.argv[1:])}
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    write_json_atomic(out / "summary.json", summary)   # last: a run with a summary is a finished run
     print(f"ran {steps_run} steps ({settings.timesteps} asked) in {training_s:.0f} s of training, "
           f"{summary['total_wall_s']:.0f} s in all; wrote {out}", file=sys.stderr)
     return summary

@@ -1,7 +1,12 @@
 """Tune the water-budget rule (:mod:`crop_agent_ros.policies.family`) of a family task on generated training
 seasons only (never the held-out ones), and write ``family_<task>.json`` beside the rules.
 
-    crop-sim tune-rule --task benton-quota [--seasons 0..199] [--seed 0] [--candidates 192] [--rounds 4]
+    crop-sim tune-rule --task benton-quota [--rule budget-rule|paced-rule] [--seasons 0..199] [--seed 0]
+        [--candidates 192] [--rounds 4]
+
+Two rule families are tuned the same way (:data:`RULES`): the water-budget rule (``budget-rule``, written to
+``family_<task>.json``) and the paced rule (``paced-rule``, :mod:`crop_agent_ros.policies.paced_rule`, written
+to ``family_<task>-paced.json``).
 
 Method: a random search over the rule's parameter box, then rounds of local search around the best few
 (Gaussian steps shrinking by half each round). Every candidate x season is one field of one batched
@@ -13,11 +18,14 @@ mean return over the seasons.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from .family import FarmFacts, RuleParameters, WaterBudgetRule
+from .paced_rule import PacedFacts, PacedParameters, PacedRule
 from .rollout import draw_terms, run_episodes, season_range
 
 HERE = Path(__file__).resolve().parent
@@ -33,6 +41,54 @@ SEARCH_BOX = {
 }
 NEVER = {"skip_rain_mm": 1e6, "start_tt_fraction": 0.0, "stop_tt_fraction": 10.0, "pace": np.inf,
          "value_ratio": np.inf}
+
+
+MAX_SEED = 2**32 - 1  # --seed (numpy's generators take any non-negative integer; one bound for every command)
+
+# The paced rule's search box and "never" values (see crop_agent_ros/policies/paced_rule.py).
+PACED_SEARCH_BOX = {
+    "level_factor": (0.5, 1.4),
+    "margin_mm": (-20.0, 60.0),
+    "early_factor": (0.0, 1.2),
+    "start_offset_degc_d": (-500.0, 600.0),
+    "stop_offset_degc_d": (-500.0, 400.0),
+    "narrow_degc_d": (0.0, 1500.0),
+    "narrow_stop_degc_d": (0.0, 1500.0),
+    "pace": (0.5, 3.0),
+    "heat_weight": (0.0, 1.0),
+    "senescence_weight": (0.0, 2.0),
+    "skip_rain_mm": (0.0, 30.0),
+}
+PACED_NEVER = {"skip_rain_mm": 1e6, "pace": 1e6}
+
+
+@dataclass(frozen=True)
+class RuleFamily:
+    """A tunable rule family: its facts (from a scenario, to and from JSON), its builder, parameter names and
+    defaults, search box, "never" values and the suffix of its file (``family_<task><suffix>.json``)."""
+
+    name: str
+    facts_of: Callable
+    facts_record: Callable
+    facts_from_record: Callable
+    build: Callable
+    names: tuple[str, ...]
+    defaults: object
+    box: dict
+    never: dict
+    suffix: str
+
+
+RULES = {
+    "budget-rule": RuleFamily(
+        "budget-rule", FarmFacts.of_scenario,
+        lambda facts: {"capacity_mm": facts.capacity_mm, "tsum_degc_d": facts.tsum_degc_d},
+        lambda record: FarmFacts(**record), WaterBudgetRule, RuleParameters.names(), RuleParameters(),
+        SEARCH_BOX, NEVER, ""),
+    "paced-rule": RuleFamily(
+        "paced-rule", PacedFacts.of_scenario, PacedFacts.record, PacedFacts.from_record, PacedRule,
+        PacedParameters.names(), PacedParameters(), PACED_SEARCH_BOX, PACED_NEVER, "-paced"),
+}
 
 
 def training_seasons(scenario, first: int, last: int) -> np.ndarray:
@@ -57,35 +113,49 @@ def rule_file(task: str) -> Path:
     return HERE / f"family_{task}.json"
 
 
-def candidate_returns(scenario, facts: FarmFacts, candidates: dict, seasons: np.ndarray, seed: int,
-                      terms: dict) -> np.ndarray:
+def family_file(task: str, rule: str = "budget-rule") -> Path:
+    """The file of ``rule`` (a :data:`RULES` name) tuned for ``task``: :func:`rule_file` of ``task`` + the
+    family's suffix (``family_<task>-paced.json`` for the paced rule)."""
+    return rule_file(task + _family(rule).suffix)
+
+
+def _family(rule: str) -> RuleFamily:
+    if rule not in RULES:
+        raise ValueError(f"unknown rule {rule!r}; known: {', '.join(RULES)}")
+    return RULES[rule]
+
+
+def candidate_returns(scenario, facts, candidates: dict, seasons: np.ndarray, seed: int,
+                      terms: dict, rule: str = "budget-rule") -> np.ndarray:
     """(C, M) returns of C candidates (name -> (C,) arrays) on M seasons, one batched run."""
     c = len(next(iter(candidates.values())))
     m = len(seasons)
-    rule = WaterBudgetRule(facts, {k: np.repeat(np.asarray(v, float), m) for k, v in candidates.items()})
+    rule = _family(rule).build(facts, {k: np.repeat(np.asarray(v, float), m) for k, v in candidates.items()})
     episodes = run_episodes(rule, scenario, np.tile(seasons, c), seed=seed,
                             terms={k: np.tile(v, c) for k, v in terms.items()})
     return episodes.episode_return.reshape(c, m)
 
 
-def _random_candidates(rng: np.random.Generator, n: int, names: tuple[str, ...]) -> dict:
+def _random_candidates(rng: np.random.Generator, n: int, names: tuple[str, ...], box: dict = SEARCH_BOX,
+                       never: dict = NEVER) -> dict:
     out = {}
     for name in names:
-        low, high = SEARCH_BOX[name]
+        low, high = box[name]
         values = rng.uniform(low, high, n)
-        if name in NEVER:
-            values = np.where(rng.random(n) < 0.35, NEVER[name], values)
+        if name in never:
+            values = np.where(rng.random(n) < 0.35, never[name], values)
         out[name] = values
     return out
 
 
-def _perturb(rng: np.random.Generator, best: list[dict], n: int, scale: float) -> dict:
+def _perturb(rng: np.random.Generator, best: list[dict], n: int, scale: float, box: dict = SEARCH_BOX,
+             never: dict = NEVER) -> dict:
     out = {name: np.empty(n) for name in best[0]}
     for i in range(n):
         parent = best[i % len(best)]
         for name, value in parent.items():
-            low, high = SEARCH_BOX[name]
-            if not np.isfinite(value) or value == NEVER.get(name):
+            low, high = box[name]
+            if not np.isfinite(value) or value == never.get(name):
                 # a "never" value flips into the box now and then, else stays
                 out[name][i] = rng.uniform(low, high) if rng.random() < 0.2 else value
             else:
@@ -94,20 +164,23 @@ def _perturb(rng: np.random.Generator, best: list[dict], n: int, scale: float) -
 
 
 def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 192, rounds: int = 4,
-              names: tuple[str, ...] = RuleParameters.names(), log=print) -> dict:
-    """The best rule parameters on ``seasons`` of ``scenario`` (see the module docstring), with its score."""
-    facts = FarmFacts.of_scenario(scenario)
+              names: tuple[str, ...] | None = None, log=print, rule: str = "budget-rule") -> dict:
+    """The best parameters of ``rule`` (a :data:`RULES` name) on ``seasons`` of ``scenario`` (see the module
+    docstring), with its score."""
+    family = _family(rule)
+    names = family.names if names is None else names
+    facts = family.facts_of(scenario)
     rng = np.random.default_rng(seed)
     terms = draw_terms(scenario, seasons, seed)
-    defaults = {k: np.array([getattr(RuleParameters(), k)]) for k in names}
-    pool = _random_candidates(rng, candidates - 1, names)
+    defaults = {k: np.array([getattr(family.defaults, k)]) for k in names}
+    pool = _random_candidates(rng, candidates - 1, names, family.box, family.never)
     pool = {k: np.concatenate([defaults[k], pool[k]]) for k in names}
     history = []
     scale = 0.15
     everything = {k: np.empty(0) for k in names}
     scores_all = np.empty(0)
     for round_ in range(rounds + 1):
-        scores = candidate_returns(scenario, facts, pool, seasons, seed, terms).mean(axis=1)
+        scores = candidate_returns(scenario, facts, pool, seasons, seed, terms, rule).mean(axis=1)
         everything = {k: np.concatenate([everything[k], pool[k]]) for k in names}
         scores_all = np.concatenate([scores_all, scores])
         order = np.argsort(scores_all)[::-1]
@@ -115,19 +188,25 @@ def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 19
         history.append(float(scores_all[order[0]]))
         log(f"round {round_}: best mean return {scores_all[order[0]]:.4f} of {len(scores_all)} candidates")
         if round_ < rounds:
-            pool = _perturb(rng, best, candidates, scale)
+            pool = _perturb(rng, best, candidates, scale, family.box, family.never)
             scale /= 2.0
-    return {"parameters": best[0], "mean_return": history[-1], "history": history,
-            "seasons": [int(s) for s in seasons], "seed": seed, "scenario": scenario.name,
-            "facts": {"capacity_mm": facts.capacity_mm, "tsum_degc_d": facts.tsum_degc_d}}
+    return {**({} if rule == "budget-rule" else {"rule": rule}), "parameters": best[0], "mean_return": history[-1],
+            "history": history, "seasons": [int(s) for s in seasons], "seed": seed, "scenario": scenario.name,
+            "facts": family.facts_record(facts)}
 
 
-def tuned_rule(task: str) -> WaterBudgetRule:
-    """The rule tuned for ``task``; FileNotFoundError says how to tune it."""
-    path = rule_file(task)
+def tuned_rule(task: str, rule: str = "budget-rule"):
+    """The ``rule`` (a :data:`RULES` name) tuned for ``task``; FileNotFoundError says how to tune it."""
+    path = family_file(task, rule)
     if not path.exists():
-        raise FileNotFoundError(f"{path} is missing: run `crop-sim tune-rule --task {task}`")
-    return rule_from_record(json.loads(path.read_text()))
+        raise FileNotFoundError(f"{path} is missing: run `crop-sim tune-rule --task {task}"
+                                + ("" if rule == "budget-rule" else f" --rule {rule}") + "`")
+    if rule == "budget-rule":
+        return rule_from_record(json.loads(path.read_text()))
+    try:
+        return paced_rule_from_record(json.loads(path.read_text()))
+    except (ValueError, KeyError, TypeError) as error:  # json's errors are ValueErrors
+        raise ValueError(f"{path}: not a tuned {rule} file ({str(error).splitlines()[0]})") from None
 
 
 def _json_parameters(parameters: dict) -> dict:
@@ -147,16 +226,30 @@ def rule_from_record(record: dict) -> WaterBudgetRule:
     return WaterBudgetRule(FarmFacts(**record["facts"]), params, name="budget-rule")
 
 
-def write_tuned(task: str, result: dict) -> Path:
-    """Write :func:`tune_rule`'s ``result`` to :func:`rule_file` (an infinite parameter as null)."""
-    path = rule_file(task)
-    plain = {**result, "parameters": _json_parameters(result["parameters"])}
-    path.write_text(json.dumps(plain, indent=1) + "\n")
-    return path
+def paced_rule_from_record(record: dict) -> PacedRule:
+    """The paced rule of a record with ``facts`` and ``parameters`` (family_<task>-paced.json); ValueError for a
+    missing, unknown or non-numeric entry."""
+    if not isinstance(record, dict) or not isinstance(record.get("parameters"), dict):
+        raise ValueError("expected an object with 'facts' and 'parameters'")
+    names = set(PacedParameters.names())
+    parameters = record["parameters"]
+    if set(parameters) != names:
+        raise ValueError(f"parameters must be exactly {', '.join(PacedParameters.names())}")
+    for key, value in parameters.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+            raise ValueError(f"parameter {key} must be a finite number, got {value!r}")
+    return PacedRule(PacedFacts.from_record(record.get("facts")), parameters, name="paced-rule")
+
+
+def write_tuned(task: str, result: dict, rule: str = "budget-rule") -> Path:
+    """Write :func:`tune_rule`'s ``result`` to :func:`family_file` (an infinite parameter as null)."""
+    from crop_sim_ros.output import write_json_atomic
+    return write_json_atomic(family_file(task, rule), {**result, "parameters": _json_parameters(result["parameters"])})
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("--task", required=True, help="a family task (e.g. benton-quota)")
+    parser.add_argument("--rule", default="budget-rule", help=f"the rule family to tune: {', '.join(RULES)}")
     parser.add_argument("--seasons", default="0..149",
                         help="training seasons FIRST..LAST of the task's pool (of each part of a mixture)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the search, the terms and the noise")
@@ -166,16 +259,20 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from crop_sim_ros.task.scenario import get_scenario
-    from crop_sim_ros.usage import UsageError, user_input
+    from crop_sim_ros.usage import UsageError, check_range, user_input
     with user_input("--task"):
         scenario = get_scenario(args.task)
     if not scenario.is_family_task or scenario.weather.kind not in ("generator", "mixture"):
         raise UsageError(f"--task {args.task}: the rule is tuned on a family task's generated training seasons")
     with user_input(None, (ValueError,)):  # the messages name --seasons
         seasons = of_each_part(scenario, season_range(str(args.seasons)))
+    check_range("--seed", args.seed, 0, MAX_SEED)
     if not (1 <= args.candidates <= 10_000 and 0 <= args.rounds <= 50):
         raise UsageError("--candidates must be in 1..10000 and --rounds in 0..50")
-    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds)
-    print(f"tuned {args.task}: {result['parameters']} mean return {result['mean_return']:.2f}; "
-          f"wrote {write_tuned(args.task, result)}")
+    rule = getattr(args, "rule", "budget-rule")
+    if rule not in RULES:
+        raise UsageError(f"--rule: unknown rule {rule!r}; known: {', '.join(RULES)}")
+    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, rule=rule)
+    print(f"tuned {args.task} {rule}: {result['parameters']} mean return {result['mean_return']:.2f}; "
+          f"wrote {write_tuned(args.task, result, rule)}")
     return 0

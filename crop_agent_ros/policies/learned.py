@@ -42,10 +42,13 @@ import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from crop_sim_ros.task.layout import EXTENDED
+from crop_sim_ros.usage import shown
 
 from .base import BasePolicy
 from .outlook import ClimateOutlook, ReadsOutlook
@@ -137,6 +140,91 @@ class ObservationScaler:
         scaled = (np.atleast_2d(np.asarray(obs, dtype=float)) - np.asarray(self.mean)) / np.asarray(self.std)
         scaled[:, self._hidden_columns] = 0.0
         return np.clip(scaled, -10.0, 10.0).astype(np.float32)
+
+
+AGENT_CONFIG_MAX_BYTES = 1024 * 1024  # model.json: a few kB (the scaler, the settings, a rule)
+MAX_HISTORY = 365  # days of observations a network may see at once
+_STRICT = ConfigDict(strict=True, frozen=True, allow_inf_nan=False)
+
+
+class ScalerRecord(BaseModel):
+    """``scaler`` of a policy file: a finite mean and a finite std > 0 per observed value (29 each), the hidden
+    columns by name."""
+
+    model_config = ConfigDict(_STRICT, extra="forbid")
+
+    mean: list[float] = Field(min_length=EXTENDED.size, max_length=EXTENDED.size)
+    std: list[Annotated[float, Field(gt=0)]] = Field(min_length=EXTENDED.size, max_length=EXTENDED.size)
+    hidden: list[Literal[EXTENDED.names]] = []
+
+
+class AgentConfig(BaseModel):
+    """``model.json`` beside a family agent's ``model.zip`` (what :class:`LearnedPolicy` and ``crop-sim evaluate
+    --task`` read), validated strictly: types (a number is a number, never a string or a bool), ranges, finite
+    values, the scaler's length the observation's. Keys it does not name (a description of the run) are kept
+    unread; those it names must be right."""
+
+    model_config = ConfigDict(_STRICT, extra="allow")
+
+    task: str = Field(min_length=1, max_length=200)
+    algorithm: Literal[ALGORITHMS]
+    history: int = Field(default=1, ge=1, le=MAX_HISTORY)
+    action_kind: Literal[ACTION_KINDS] = "mm"  # files written before the residual variant have none: "mm"
+    scaler: ScalerRecord
+    seed: int = Field(default=-1, ge=-1, le=2**32 - 1)  # the training seed (-1: not recorded)
+    timesteps: int = Field(default=0, ge=0)
+    timesteps_at_save: int | None = Field(default=None, ge=0)
+    training_seasons: int = Field(default=0, ge=0)
+    n_envs: int = Field(default=0, ge=0)
+    net_arch: list[Annotated[int, Field(ge=1)]] = []
+    rule: dict[str, Any] | None = None
+    paw_filter: dict[str, Any] | None = None
+    outlook: dict[str, Any] | None = None
+
+    @model_validator(mode="after")
+    def _residual_has_its_rule(self) -> "AgentConfig":
+        if self.action_kind == "residual" and self.rule is None:
+            raise ValueError("action_kind 'residual' needs the rule it corrects (\"rule\": its facts and parameters)")
+        return self
+
+
+def _refuse_duplicate_keys(pairs: list[tuple[str, Any]]) -> dict:
+    keys = [key for key, _ in pairs]
+    if len(set(keys)) != len(keys):
+        raise ValueError(f"the key {shown(next(k for k in keys if keys.count(k) > 1))} appears twice")
+    return dict(pairs)
+
+
+def read_agent_config(path: str | Path) -> AgentConfig:
+    """The validated ``model.json`` at ``path``: a regular file of at most 1 MB, one JSON object without
+    duplicate keys, as :class:`AgentConfig` says. ValueError naming the file and every problem (with its path
+    in the file, ``scaler.std.3: ...``), never quoting the file."""
+    from crop_sim_ros.safe_yaml import read_text
+    path = Path(path)
+    text = read_text(path, AGENT_CONFIG_MAX_BYTES)  # not a regular file, too big, not UTF-8: ValueError
+    try:
+        record = json.loads(text, object_pairs_hook=_refuse_duplicate_keys)
+    except RecursionError:
+        raise ValueError(f"{path}: nested too deep") from None
+    except ValueError as error:  # JSONDecodeError and the duplicate keys
+        where = f" (line {error.lineno})" if isinstance(error, json.JSONDecodeError) else ""
+        message = error.msg if isinstance(error, json.JSONDecodeError) else str(error)
+        raise ValueError(f"{path}: not valid JSON{where}: {message}") from None
+    if not isinstance(record, dict):
+        raise ValueError(f"{path}: not a JSON object")
+    try:
+        return AgentConfig.model_validate(record)
+    except ValidationError as error:
+        problems = "; ".join(f"{'.'.join(map(str, e['loc'])) or 'model.json'}: {e['msg']}" for e in error.errors()[:10])
+        raise ValueError(f"{path}: {problems}") from None
+
+
+def check_agent_task(config: AgentConfig, task: str, where: str) -> None:
+    """ValueError unless the agent was trained on ``task`` (a network reads its own task's observation: the
+    numbers of another task, even of the same layout, mean other things)."""
+    if config.task != task:
+        raise ValueError(f"{where}: trained on {shown(config.task)}, not {shown(task)} (an agent acts on its own "
+                         f"task only; train one with `crop-sim train --task {shown(task)[1:-1]}`)")
 
 
 class History:
@@ -271,40 +359,34 @@ class LearnedPolicy(ReadsOutlook, BasePolicy):
         if not self.path.is_file() or not config_file.is_file():
             raise FileNotFoundError(f"{self.path} (and {config_file.name} beside it) must exist: train with "
                                     "`crop-sim train --task TASK`")
-        self.config = json.loads(config_file.read_text())
-        self.algorithm = self.config.get("algorithm")
-        if self.algorithm not in ALGORITHMS:
-            raise ValueError(f"{config_file}: algorithm {self.algorithm!r} is not one of {', '.join(ALGORITHMS)}")
-        # policy files written before the residual variant existed have no action_kind: theirs is "mm"
-        action_kind = self.config.get("action_kind", "mm")
-        if action_kind not in ACTION_KINDS:
-            raise ValueError(f"{config_file}: action_kind {action_kind!r} is not one of {', '.join(ACTION_KINDS)}")
+        agent = read_agent_config(config_file)
+        self.agent_config = agent
+        self.config = agent.model_dump()
+        self.algorithm = agent.algorithm
+        self.task = agent.task
+        action_kind = agent.action_kind
         rule = None
         if action_kind == "residual":
             from .family_tuning import rule_from_record
-            if not isinstance(self.config.get("rule"), dict):
-                raise ValueError(f"{config_file}: action_kind 'residual' needs the rule it corrects (\"rule\": its "
-                                 "facts and parameters, as `crop-sim train --task T --action residual` writes)")
-            rule = rule_from_record(self.config["rule"])
+            try:
+                rule = rule_from_record(agent.rule)
+            except (KeyError, TypeError, ValueError) as error:
+                raise ValueError(f"{config_file}: rule: {shown(error)}") from None
         paw_filter = None
-        if self.config.get("paw_filter") is not None:
+        if agent.paw_filter is not None:
             from .family import SoilWaterFilter
             try:
-                paw_filter = SoilWaterFilter(**self.config["paw_filter"])
+                paw_filter = SoilWaterFilter(**agent.paw_filter)
             except (TypeError, ValueError) as error:
-                raise ValueError(f"{config_file}: paw_filter {self.config['paw_filter']!r}: {error}") from None
+                raise ValueError(f"{config_file}: paw_filter {shown(agent.paw_filter)}: {error}") from None
         outlook = None
-        if self.config.get("outlook") is not None:
+        if agent.outlook is not None:
             outlook = ClimateOutlook()
-            if self.config["outlook"] != outlook.record():
-                raise ValueError(f"{config_file}: outlook {self.config['outlook']!r} is not this version's "
+            if agent.outlook != outlook.record():
+                raise ValueError(f"{config_file}: outlook {shown(agent.outlook)} is not this version's "
                                  f"{outlook.record()!r}")
-        try:
-            scaler = ObservationScaler.from_record(self.config["scaler"])
-        except KeyError as error:
-            raise ValueError(f"{config_file}: scaler: {error}") from None
-        self.interface = AgentInterface(scaler, self.config.get("history", 1), action_kind, rule, paw_filter,
-                                        outlook)
+        scaler = ObservationScaler(tuple(agent.scaler.mean), tuple(agent.scaler.std), tuple(agent.scaler.hidden))
+        self.interface = AgentInterface(scaler, agent.history, action_kind, rule, paw_filter, outlook)
         self.model = algorithm_class(self.algorithm).load(str(self.path), device="cpu")
         expected = (self.interface.input_size,)
         if self.model.observation_space.shape != expected or self.model.action_space.shape != (1,):

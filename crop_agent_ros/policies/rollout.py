@@ -39,16 +39,21 @@ class Episodes:
 
 
 def season_range(text: str) -> np.ndarray:
-    """Season indices of a command's ``--seasons`` (``'A..B'``, both included, or one index); ValueError naming
-    --seasons for anything else."""
-    low, _, high = text.partition("..")
+    """Season indices of a command's ``--seasons`` (``'A..B'``, both included, or one index), each below a pool's
+    largest size (MAX_GENERATED_SEASONS); ValueError naming --seasons for anything else, before any allocation."""
+    from crop_sim_ros.task.scenario import MAX_GENERATED_SEASONS
+    from crop_sim_ros.usage import shown
+    low_text, dots, high_text = text.partition("..")
     try:
-        indices = np.arange(int(low), int(high) + 1) if high else np.array([int(low)])
+        low, high = int(low_text), int(high_text if dots else low_text)
     except ValueError:
-        raise ValueError(f"--seasons: expected 'A..B' or one index, got {text!r}") from None
-    if indices.size == 0 or indices.min() < 0:
-        raise ValueError(f"--seasons: {text!r} names no season (non-negative, A <= B)")
-    return indices
+        raise ValueError(f"--seasons: expected 'A..B' or one index, got {shown(text)}") from None
+    if not 0 <= low <= high:
+        raise ValueError(f"--seasons: {shown(text)} names no season (non-negative, A <= B)")
+    if high >= MAX_GENERATED_SEASONS:
+        raise ValueError(f"--seasons: {shown(text)} goes past season {MAX_GENERATED_SEASONS - 1}, the last of the "
+                         "largest pool")
+    return np.arange(low, high + 1)
 
 
 def draw_terms(scenario, seasons: np.ndarray, seed: int) -> dict:

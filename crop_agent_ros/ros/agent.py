@@ -14,6 +14,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import Float32MultiArray, Float64MultiArray
 
 from crop_sim_ros import ros_interface as ri
+from crop_sim_ros.simulate import is_scenario_path
 
 from ..policies import NODE_POLICIES, POLICY_KINDS, PolicyArguments, build_policy
 from .sim_client import UNCHANGED, SimClient, scenario_layout
@@ -122,13 +123,17 @@ class AgentNode(Node):
             self._client = SimClient(self, executor, self.sim, timeout=self.get_parameter("timeout").value)
             scenario = self._client.connect()["scenario"]
             if self.policy is None:
-                if scenario.endswith((".yaml", ".yml")) or "/" in scenario:
+                if is_scenario_path(scenario):
                     raise ValueError(f"policy {self._policy_kind}: the simulator's scenario is the file {scenario}: "
                                      "name the task with task:=")
                 self.policy = make_agent_policy(self._policy_kind, task=scenario)
                 self.get_logger().info(f"policy {self.policy!r} of the simulator's scenario {scenario!r}")
             check_observation_size(self.policy, scenario_layout(scenario).size,
                                    f"the simulator's scenario {scenario!r}")
+            agent = getattr(self.policy, "agent_config", None)  # a family agent: of this task only
+            if agent is not None and not is_scenario_path(scenario):
+                from ..policies.learned import check_agent_task
+                check_agent_task(agent, scenario, "policy_file")
             if not self.drive_mode:
                 self._client.close()
                 self._client = None

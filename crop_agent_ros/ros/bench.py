@@ -263,11 +263,11 @@ def bench_baselines_only(rounds: int, calls: int) -> dict:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--rounds", type=int, default=5, help="alternating measurement rounds (default 5)")
+    parser.add_argument("--rounds", type=int, default=5, help="alternating measurement rounds (default 5, at most 100)")
     parser.add_argument("--calls", type=int, default=400,
-                        help="with --baselines-only: round trips of each kind per round (default 400)")
+                        help="with --baselines-only: round trips of each kind per round (default 400, at most 100000)")
     parser.add_argument("--seasons", type=int, default=1, help="seasons through the bridge per round, each way "
-                                                                 "(default 1)")
+                                                                 "(default 1, at most 1000)")
     parser.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     parser.add_argument("--baselines-only", action="store_true", help="skip the bridge")
 
@@ -275,10 +275,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args) -> int:
     from .process import isolated_ros_env, pick_domain_id
 
-    for name in ("rounds", "calls", "seasons"):
-        if getattr(args, name) < 1:
-            print(f"ros-bench: --{name} must be at least 1, got {getattr(args, name)}", file=sys.stderr)
-            return 2
+    from crop_sim_ros.usage import check_range
+    for name, most in (("rounds", 100), ("calls", 100_000), ("seasons", 1_000)):
+        check_range(f"--{name}", getattr(args, name), 1, most)
     # one private domain for this run and its children
     os.environ.update(isolated_ros_env(int(os.environ.get("ROS_DOMAIN_ID") or pick_domain_id(salt=37))))
     vias = () if args.baselines_only else ("topic", "service")

@@ -9,13 +9,14 @@ task ``benton-generated`` (no data file needed), seed 0. On a family task (``--t
 ``--policy budget-rule`` is that task's tuned rule, ``--policy es`` its shipped evolution-strategies agent
 (``crop-sim farm --task benton-quota --policy es``; a task without one is refused in one line naming the tasks
 that have one) and ``--policy agent --policy-file .../model.zip`` a family agent (``crop-sim train --task``). Both nodes run on a private ROS_DOMAIN_ID
-with discovery kept on this machine, so nothing else on the network sees them (``--domain-id`` to choose).
+with discovery kept on this machine, so nothing else on the network sees them (``--domain-id`` to choose, 0..232).
+The nodes die with the farm, even when it is killed by SIGKILL (a parent-death signal: :mod:`.process`).
 On a ROS 2 machine the same job is ``ros2 launch crop_sim_ros farm.launch.py``.
 
 Exit status: 0 when every season was grown; 2 for a mistake in the input (a bad argument, an unknown
-scenario or policy, a policy file that is missing or not for this task: a node that cannot start says why
-in one line); 1 when a node failed later (its output is printed); 128 + the signal's number when stopped by
-SIGINT or SIGTERM (both nodes are stopped first, without a traceback).
+scenario or policy, a policy file that is missing or not for this task, a family agent of another task: a node
+that cannot start says why in one line); 1 when a node failed later (its output is printed); 128 + the signal's
+number when stopped by SIGINT or SIGTERM (both nodes are stopped first, without a traceback).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from crop_sim_ros.usage import EXIT_USAGE, UsageError
+from crop_sim_ros.usage import EXIT_USAGE, UsageError, check_range, user_input
 
 from ..policies import NODE_POLICIES
 from ..policies.registry import SHIPPED_POLICIES, shipped_agent_file
@@ -37,6 +38,7 @@ from .process import NodeProcess, isolated_ros_env, pick_domain_id
 
 SUMMARY_PREFIX = "season summary: "
 MAX_SEASONS = 100_000  # the agent node's own bound of its ``seasons`` parameter
+MAX_DOMAIN_ID = 232  # DDS's bound of ROS_DOMAIN_ID (ports grow with it; Linux keeps 0..101 clear of ephemeral ports)
 # seconds the agent waits for any answer of the simulator, its start-up included (both nodes load for seconds)
 AGENT_TIMEOUT_S = 30.0
 # a log line of rclpy: "[FATAL] [1700000000.123] [crop_agent]: message"
@@ -65,7 +67,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the first season (default 0)")
     parser.add_argument("--log", default="", help="season log CSV (default: a file in a temporary directory, "
                         "printed at the end)")
-    parser.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: derived from the pid)")
+    parser.add_argument("--domain-id", type=int, default=None, help=f"ROS_DOMAIN_ID, 0..{MAX_DOMAIN_ID} (default: "
+                        "derived from the pid)")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds before giving up (default 600)")
     parser.add_argument("--json", action="store_true", help="print the summaries as JSON lines only")
     parser.add_argument("--no-plot", action="store_true", help="do not draw the last season (PNG beside the log)")
@@ -95,12 +98,23 @@ def startup_failure(node: NodeProcess) -> str:
 def run(args) -> int:
     if not 1 <= args.seasons <= MAX_SEASONS:
         raise UsageError(f"--seasons: {args.seasons} is not in 1..{MAX_SEASONS}")
+    if args.domain_id is not None:
+        check_range("--domain-id", args.domain_id, 0, MAX_DOMAIN_ID)
     if not args.timeout > 0:
         raise UsageError(f"--timeout: {args.timeout} s is not positive")
     if args.policy_file and not Path(args.policy_file).expanduser().is_file():
         raise UsageError(f"--policy-file: {args.policy_file} is not a file")
     if args.policy == "agent" and not args.policy_file:
         raise UsageError("--policy agent needs --policy-file (a family agent's model.zip)")
+    if args.policy == "agent":
+        # model.json beside the agent: valid, and of this task (a scenario file is a task of its own: not checked)
+        from crop_sim_ros.simulate import is_scenario_path
+
+        from ..policies.learned import check_agent_task, read_agent_config
+        with user_input("--policy-file"):
+            agent = read_agent_config(Path(args.policy_file).expanduser().with_suffix(".json"))
+            if not is_scenario_path(args.task):
+                check_agent_task(agent, args.task, args.policy_file)
     if args.policy in SHIPPED_POLICIES:  # refused here, before any node starts
         try:
             shipped_agent_file(args.policy, args.task)
@@ -151,7 +165,9 @@ def _grow(args) -> int:
             print(f"{failed.name} exited with status {failed.poll()}:\n{failed.output()}", file=sys.stderr)
             code = 1
     finally:
-        _set_signal_handlers(signal.SIG_IGN)  # a signal must not leave a node running (each has its own session)
+        # a signal must not leave a node running (each has its own session; SIGKILL: NodeProcess's parent-death
+        # signal stops them)
+        _set_signal_handlers(signal.SIG_IGN)
         for node in (agent, sim):
             if node is not None:
                 node.stop()

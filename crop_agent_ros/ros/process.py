@@ -13,11 +13,17 @@ Used by :mod:`.farm` (one command that grows a season over ROS), :mod:`.bench` a
   dead, only those that no other live process also owns (a shared port). ``wait(timeout)`` on a process that
   is still running when it expires has it print where it is (Python's fault handler, on SIGABRT) before it
   raises :class:`StillRunning` with that output: a hang names its own frame.
+  A node dies with the process that started it: on Linux the child asks the kernel for SIGTERM when its parent
+  dies (``prctl(PR_SET_PDEATHSIG)``, kept across the bootstrapper's exec), so a SIGKILL of ``crop-sim farm``
+  leaves no node running (each node has its own session, so nothing else would reach it). The signal comes when
+  the *thread* that started the child ends: start nodes from a thread that outlives them (the main thread).
 """
 
 from __future__ import annotations
 
 import atexit
+import ctypes
+import ctypes.util
 import os
 import signal
 import subprocess
@@ -179,6 +185,42 @@ def clean_dead_ports() -> list[str]:
 atexit.register(clean_dead_ports)
 
 
+PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
+def _load_prctl():
+    """libc's ``prctl``, looked up once here (not in the forked child, where loading a library could deadlock);
+    None where there is none (not Linux)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        prctl = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True).prctl
+    except (OSError, AttributeError):
+        return None
+    prctl.argtypes = [ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong]
+    prctl.restype = ctypes.c_int
+    return prctl
+
+
+_PRCTL = _load_prctl()
+
+
+def die_with_parent(parent_pid: int, signum: int = signal.SIGTERM):
+    """A ``preexec_fn`` that has the child receive ``signum`` when its parent dies (None where the platform
+    cannot). It runs in the child between fork and exec: if the parent died before the request was made (the
+    child was already handed to another process, so ``getppid()`` differs), the child exits at once."""
+    if _PRCTL is None:
+        return None
+    prctl = _PRCTL
+
+    def preexec() -> None:
+        prctl(PR_SET_PDEATHSIG, int(signum), 0, 0, 0)
+        if os.getppid() != parent_pid:
+            os._exit(128 + int(signum))
+
+    return preexec
+
+
 class StillRunning(subprocess.TimeoutExpired):
     """A child process outlived a wait; ``output`` holds what it printed, its stacks at the end."""
 
@@ -203,7 +245,8 @@ class NodeProcess:
         self.process = subprocess.Popen(command, env=env if env is not None else isolated_ros_env(),
                                         cwd=str(REPO_ROOT),
                                         stdout=self._log if self._log else subprocess.PIPE,
-                                        stderr=subprocess.STDOUT, start_new_session=True)
+                                        stderr=subprocess.STDOUT, start_new_session=True,
+                                        preexec_fn=die_with_parent(os.getpid()))
         self.pid = self.process.pid
         self._shm: set[str] = set()
         self._ports: set[str] = set()

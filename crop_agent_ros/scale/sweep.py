@@ -30,8 +30,11 @@ The configuration (YAML; every key but ``tasks`` optional)::
     cpus-per-trial: 1
 
 Configurations are numbered ``c00``, ``c01``, ...: the grid's combinations in order, each with its random
-draws. Every option value is checked by the commands' own parsers, and every trial's training settings by its
-recipe's validation, before Ray starts. Trial ``<task>-cNN-sS``
+draws. Before Ray starts, the file is checked by a strict schema (:class:`SweepConfig`, pydantic: types, ranges,
+unknown keys; each task a built-in family task, named once; every distribution finite and bounded), the number of
+trials (at most MAX_TRIALS) is computed before any configuration is built, every option is checked by its
+command's own parser, every trial's training settings by its recipe's validation and the evaluation's options by
+``crop-sim evaluate --task``'s checks: one error lists every problem with its path. Trial ``<task>-cNN-sS``
 writes under ``<out>/trials/<trial>/``: ``run/`` (the training run: checkpoints, curve, ``model.zip``), ``eval/``
 (the evaluation's tables), ``trial.log`` (its output) and ``attempts.log`` (one line per attempt: node and
 process). A retry reuses a finished training (``run/summary.json``) and redoes the rest; an unfinished
@@ -39,8 +42,9 @@ training is started again from scratch (training is deterministic for its seed).
 oracle's plans (``<out>/oracle-cache``, ``crop-sim evaluate --oracle-cache``): the oracle of a task's sets is
 planned once, by the first trial that evaluates them, not once per trial.
 
-Outputs in ``<out>``: ``table.csv`` and ``table.json`` (a row per planned trial: ``finished``, ``failed`` with
-its error, or ``unfinished`` (an interrupted sweep); hyperparameters, node, attempts, training figures, and per evaluation set the
+Outputs in ``<out>`` (each written atomically, :mod:`crop_sim_ros.output`): ``table.csv`` and ``table.json`` (a row
+per planned trial: ``finished`` (its evaluation wrote its table), ``failed`` with its error, or ``unfinished`` (an
+interrupted sweep); hyperparameters, node, attempts, training figures, and per evaluation set the
 oracle's return, the rule's and the agent's regret with its 95 % CI, the ratio agent/rule with its CI,
 paired wins, final / 1 % regret), ``best.json`` and ``table.md`` (the best configuration per task: the highest
 mean validation return over its seeds -- generated validation seasons, never a held-out set -- with its
@@ -57,29 +61,40 @@ mistake in the command or the configuration.
 from __future__ import annotations
 
 import argparse
-import csv
+import functools
 import importlib
 import itertools
 import json
+import math
 import os
+import re
 import shutil
 import sys
 import time
+from collections import Counter
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Annotated, ClassVar, Union
 
 import numpy as np
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, PlainValidator, StringConstraints,
+                      Tag, ValidationError, field_validator, model_validator)
+from pydantic_core import PydanticCustomError
 
-from crop_sim_ros.usage import UsageError, user_input
+from crop_sim_ros.output import check_output_directory, save_figure_atomic, write_csv_atomic, write_json_atomic, \
+    write_text_atomic
+from crop_sim_ros.usage import UsageError, shown, user_input
 
 from .cluster import check_address, probe
 
-TOP_KEYS = {"name", "tasks", "seeds", "train", "grid", "random", "samples", "search-seed", "evaluate", "retries",
-            "cpus-per-trial"}
-DISTRIBUTIONS = ("uniform", "loguniform", "randint", "choice")
 RESERVED_TRAIN = {"task", "seed", "out", "hyperparams", "show"}  # set by the sweep for each trial (or meaningless)
 RESERVED_EVALUATE = {"task", "agents", "out", "address", "cpus", "oracle-cache"}  # set per trial
 MAX_TRIALS = 10_000
+MAX_VALUES = 1_000           # values of one grid option, one choice, one list value
+MAX_MAGNITUDE = 1e12         # |low|, |high| of a uniform or loguniform draw
+MAX_RANDINT = 2**53          # |low|, |high| of a randint draw (every integer exact as a float too)
+MAX_TEXT = 200               # characters of a string option value
+MAX_LISTED = 20              # problems listed in one error (then "and N more")
 EXIT_INTERRUPTED = 130
 AGENT = "agent"
 
@@ -97,7 +112,203 @@ def add_arguments(parser) -> None:
                         help="continue the interrupted sweep in --out: keep finished trials, run the others")
 
 
-# --- the configuration -----------------------------------------------------------------------------------
+# --- the configuration's schema ----------------------------------------------------------------------------
+
+def _scalar(value):
+    """An option's value: true/false, a finite number (an integer within int64) or a short string."""
+    if isinstance(value, bool) or (isinstance(value, str) and len(value) <= MAX_TEXT):
+        return value
+    if isinstance(value, int) and -2**63 <= value < 2**63:
+        return value
+    if isinstance(value, float) and math.isfinite(value):
+        return value
+    raise PydanticCustomError("option_value", "has value {value}; give a number (finite; an integer within int64), "
+                              "a string (at most {chars} characters) or true/false",
+                              {"value": shown(value), "chars": MAX_TEXT})
+
+
+def _value(value):
+    """A setting's value: a scalar (:func:`_scalar`) or a list of at most MAX_VALUES scalars (``net-arch``)."""
+    if isinstance(value, list):
+        if not 1 <= len(value) <= MAX_VALUES:
+            raise PydanticCustomError("option_value", "a list value needs 1..{n} items, not {count}",
+                                      {"n": MAX_VALUES, "count": len(value)})
+        return [_scalar(v) for v in value]
+    return _scalar(value)
+
+
+Scalar = Annotated[object, PlainValidator(_scalar)]
+Value = Annotated[object, PlainValidator(_value)]
+OptionName = Annotated[str, StringConstraints(pattern=r"^[A-Za-z][A-Za-z0-9_-]{0,63}$")]
+
+
+def _task_name(name) -> str:
+    """A built-in task's name: a string of letters, digits and '-' (never a path: it names the trial's folder and
+    Ray Tune's trial) that :func:`~crop_sim_ros.task.scenario.scenario_names` knows."""
+    from crop_sim_ros.task.scenario import scenario_names
+    if not isinstance(name, str):
+        raise PydanticCustomError("task_name", "give a task's name, not {value}", {"value": shown(name)})
+    if not re.fullmatch(r"[a-z0-9][a-z0-9-]{0,63}", name):
+        raise PydanticCustomError("task_name", "{name} is not a task's name (lower-case letters, digits and '-'; no "
+                                  "'/' or other path characters)", {"name": shown(name)})
+    if name not in scenario_names():
+        raise PydanticCustomError("unknown_task", "unknown task {name}; known: {known}",
+                                  {"name": shown(name), "known": ", ".join(scenario_names())})
+    return name
+
+
+TaskName = Annotated[str, PlainValidator(_task_name)]
+Seed = Annotated[int, Field(ge=0, le=2**31 - 1)]
+Bound = Annotated[float, Field(ge=-MAX_MAGNITUDE, le=MAX_MAGNITUDE, allow_inf_nan=False)]
+IntBound = Annotated[int, Field(ge=-MAX_RANDINT, le=MAX_RANDINT)]
+STRICT = ConfigDict(extra="forbid", strict=True, frozen=True)
+
+
+class _Range(BaseModel):
+    """[low, high] with low < high."""
+
+    model_config = STRICT
+
+    def bounds(self) -> list:
+        return getattr(self, self.kind)
+
+    @model_validator(mode="after")
+    def _ordered(self):
+        low, high = self.bounds()
+        if not low < high:
+            raise PydanticCustomError("range", "needs [low, high] with low < high")
+        return self
+
+
+class Uniform(_Range):
+    kind: ClassVar[str] = "uniform"
+    uniform: list[Bound] = Field(min_length=2, max_length=2)
+
+
+class LogUniform(_Range):
+    kind: ClassVar[str] = "loguniform"
+    loguniform: list[Annotated[float, Field(gt=0, le=MAX_MAGNITUDE, allow_inf_nan=False)]] = Field(
+        min_length=2, max_length=2)
+
+
+class RandInt(_Range):
+    """Inclusive: [5, 10] draws 5..10."""
+
+    kind: ClassVar[str] = "randint"
+    randint: list[IntBound] = Field(min_length=2, max_length=2)
+
+
+class Choice(BaseModel):
+    model_config = STRICT
+    kind: ClassVar[str] = "choice"
+    choice: list[Value] = Field(min_length=1, max_length=MAX_VALUES)
+
+
+DISTRIBUTIONS = (Uniform, LogUniform, RandInt, Choice)
+
+
+def _distribution_kind(value) -> str | None:
+    kind = next(iter(value)) if isinstance(value, dict) and len(value) == 1 else None
+    return kind if kind in {d.kind for d in DISTRIBUTIONS} else None
+
+
+Distribution = Annotated[
+    Union[tuple(Annotated[d, Tag(d.kind)] for d in DISTRIBUTIONS)],
+    Discriminator(_distribution_kind, custom_error_type="distribution",
+                  custom_error_message="must be one of " + ", ".join(f"{{{d.kind}: [...]}}" for d in DISTRIBUTIONS))]
+
+
+class SweepConfig(BaseModel):
+    """The sweep's YAML file (see the module docstring): types, ranges, required and unknown keys."""
+
+    model_config = STRICT
+
+    name: Annotated[str, StringConstraints(pattern=r"^[A-Za-z0-9_-]{1,64}$")] | None = None
+    tasks: list[TaskName] = Field(min_length=1, max_length=MAX_TRIALS)
+    seeds: list[Seed] = Field(default=[0], min_length=1, max_length=MAX_TRIALS)
+    train: dict[OptionName, Value] = {}
+    grid: dict[OptionName, Annotated[list[Value], Field(min_length=1, max_length=MAX_VALUES)]] = {}
+    random: dict[OptionName, Distribution] = {}
+    samples: int = Field(default=1, ge=1, le=MAX_TRIALS)
+    search_seed: int = Field(default=0, ge=0, le=2**32 - 1, alias="search-seed")
+    evaluate: dict[OptionName, Scalar] = {}
+    retries: int = Field(default=2, ge=0, le=100)
+    cpus_per_trial: float = Field(default=1, gt=0, le=1024, allow_inf_nan=False, alias="cpus-per-trial")
+
+    @field_validator("train", "grid", "random", "evaluate", mode="before")
+    @classmethod
+    def _empty_section(cls, value):
+        return {} if value is None else value   # `train:` with nothing under it
+
+    @field_validator("tasks", "seeds")
+    @classmethod
+    def _distinct(cls, values: list):
+        repeated = sorted(str(v) for v, count in Counter(values).items() if count > 1)
+        if repeated:
+            raise PydanticCustomError("repeated", "{repeated} named more than once (each trial's key and folder "
+                                      "must be its own)", {"repeated": ", ".join(repeated)})
+        return values
+
+    @field_validator("train")
+    @classmethod
+    def _train_not_reserved(cls, options: dict):
+        return _not_reserved(options, RESERVED_TRAIN)
+
+    @field_validator("evaluate")
+    @classmethod
+    def _evaluate_not_reserved(cls, options: dict):
+        return _not_reserved(options, RESERVED_EVALUATE)
+
+    @model_validator(mode="after")
+    def _each_option_once(self):
+        searched = set(self.grid) | set(self.random)
+        clash = sorted((set(self.grid) & set(self.random)) | (searched & set(self.train)) | (searched & RESERVED_TRAIN))
+        if clash:
+            raise PydanticCustomError("clash", "option(s) {clash} set in more than one of train / grid / random (or "
+                                      "reserved for the sweep)", {"clash": ", ".join(clash)})
+        if self.samples > 1 and not self.random:
+            raise PydanticCustomError("samples", "samples {samples} without random options would repeat the same "
+                                      "configuration", {"samples": self.samples})
+        return self
+
+    def n_configurations(self) -> int:
+        """The grid's combinations times the random draws of each: arithmetic, nothing built."""
+        return math.prod(len(values) for values in self.grid.values()) * self.samples
+
+
+def _not_reserved(options: dict, reserved: set) -> dict:
+    clash = sorted(set(options) & reserved)
+    if clash:
+        raise PydanticCustomError("reserved", "may not set {clash} (the sweep sets them per trial)",
+                                  {"clash": ", ".join(clash)})
+    return options
+
+
+def schema_problems(error: ValidationError) -> list[str]:
+    """Every problem of a validation error, one ``path: what`` each (a distribution's tag not repeated)."""
+    problems = []
+    for e in error.errors(include_url=False, include_input=False, include_context=False):
+        parts = []
+        for part in e["loc"]:
+            if not parts or parts[-1] != str(part):
+                parts.append(str(part))
+        message = e["msg"]
+        if e["type"] == "extra_forbidden" and len(parts) == 1:
+            message = "unknown key; known: " + ", ".join(f.alias or n for n, f in SweepConfig.model_fields.items())
+        problems.append(f"{'.'.join(parts) or 'the file'}: {message}")
+    return problems
+
+
+def listed(what: str, problems: list[str]) -> UsageError:
+    """One error naming ``what`` and listing its problems (the first MAX_LISTED, then how many more)."""
+    unique = list(dict.fromkeys(problems))
+    text = "; ".join(unique[:MAX_LISTED]) + (f"; and {len(unique) - MAX_LISTED} more" if len(unique) > MAX_LISTED
+                                               else "")
+    count = f"{len(unique)} problems: " if len(unique) > 1 else ""
+    return UsageError(f"{what}: {count}{text}")
+
+
+# --- the trials' command lines -----------------------------------------------------------------------------
 
 class _Parser(argparse.ArgumentParser):
     """A command's parser whose mistakes raise UsageError (a trial option checked before Ray starts)."""
@@ -120,8 +331,6 @@ def option_argv(options: dict, what: str, parser: argparse.ArgumentParser) -> li
     known = {o for action in parser._actions for o in action.option_strings}
     argv = []
     for name, value in options.items():
-        if not isinstance(name, str) or not name or name.startswith("-"):
-            raise UsageError(f"{what}: option {name!r} must be a long option name without dashes, e.g. timesteps")
         if f"--{name}" not in known:
             raise UsageError(f"{what}: {parser.prog} has no option --{name}")
         if isinstance(value, bool):
@@ -129,7 +338,8 @@ def option_argv(options: dict, what: str, parser: argparse.ArgumentParser) -> li
         elif isinstance(value, (int, float, str)):
             argv += [f"--{name}", str(value)]
         else:
-            raise UsageError(f"{what}: option {name!r} has value {value!r}; give a number, a string or true/false")
+            raise UsageError(f"{what}: option {name!r} has value {shown(value)}; give a number, a string or "
+                             "true/false")
     return argv
 
 
@@ -138,18 +348,12 @@ def training_argv(options: dict, what: str, parser: argparse.ArgumentParser) -> 
     :func:`option_argv` gives it, anything else as one setting of the recipe, ``--hyperparams key=value`` (``-`` in
     the name read as ``_``: ``learning-rate`` is ``learning_rate``; a list, e.g. ``net-arch: [64, 64]``, as YAML)."""
     known = {o for action in parser._actions for o in action.option_strings}
-    commands = {name: value for name, value in options.items() if isinstance(name, str) and f"--{name}" in known}
+    commands = {name: value for name, value in options.items() if f"--{name}" in known}
     argv = option_argv(commands, what, parser)
     for name, value in options.items():
-        if name in commands:
-            continue
-        if not isinstance(name, str) or not name or name.startswith("-"):
-            raise UsageError(f"{what}: option {name!r} must be a long option name without dashes, e.g. timesteps")
-        if isinstance(value, (dict, type(None))):
-            raise UsageError(f"{what}: setting {name!r} has value {value!r}; give a number, a string, true/false "
-                             "or a list")
-        text = json.dumps(value) if isinstance(value, (list, bool)) else value
-        argv += ["--hyperparams", f"{name.replace('-', '_')}={text}"]
+        if name not in commands:
+            text = json.dumps(value) if isinstance(value, (list, bool)) else value
+            argv += ["--hyperparams", f"{name.replace('-', '_')}={text}"]
     return argv
 
 
@@ -191,68 +395,43 @@ class SweepSpec:
 
     @classmethod
     def load(cls, path: Path) -> "SweepSpec":
-        import yaml
-        with user_input(f"sweep configuration {path}", (OSError, UnicodeDecodeError, yaml.YAMLError)):
-            text = path.read_text(encoding="utf-8")
-            raw = yaml.safe_load(text)
+        """The checked sweep of the YAML file ``path``, read by :mod:`crop_sim_ros.safe_yaml` (a regular file of at
+        most 64 KiB, no aliases, no duplicate keys, bounded nesting) and checked by :meth:`from_dict`."""
+        from crop_sim_ros.safe_yaml import YamlInputError, read_yaml
+        try:
+            raw = read_yaml(path)
+        except YamlInputError as error:
+            raise UsageError(f"sweep configuration {error}") from None
         return cls.from_dict(raw, str(path))
 
     @classmethod
     def from_dict(cls, raw, source: str = "<dict>") -> "SweepSpec":
+        """The checked sweep of the mapping ``raw``: UsageError listing every problem with its path, first of
+        the file (:class:`SweepConfig`), then of the trials' command lines and settings; the number of trials is
+        checked against MAX_TRIALS before any configuration is built."""
         what = f"sweep configuration {source}"
         if not isinstance(raw, dict):
-            raise UsageError(f"{what}: expected a mapping of keys ({', '.join(sorted(TOP_KEYS))})")
-        unknown = sorted(set(map(str, raw)) - TOP_KEYS)
-        if unknown:
-            raise UsageError(f"{what}: unknown key(s) {', '.join(unknown)}; known: {', '.join(sorted(TOP_KEYS))}")
-        name = raw.get("name", Path(source).stem)
-        if not isinstance(name, str) or not name.replace("-", "").replace("_", "").isalnum():
-            raise UsageError(f"{what}: name {name!r} must be letters, digits, - and _")
-        tasks = raw.get("tasks")
-        if not isinstance(tasks, list) or not tasks or not all(isinstance(t, str) for t in tasks):
-            raise UsageError(f"{what}: tasks must be a non-empty list of family task names, e.g. [benton-quota]")
-        seeds = raw.get("seeds", [0])
-        if (not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool)
-                                                                  and 0 <= s < 2**31 for s in seeds)
-                or len(set(seeds)) != len(seeds)):
-            raise UsageError(f"{what}: seeds must be a non-empty list of distinct integers in 0..2**31-1")
-        sections = {}
-        for key in ("train", "grid", "random", "evaluate"):
-            value = raw.get(key) or {}
-            if not isinstance(value, dict):
-                raise UsageError(f"{what}: {key} must be a mapping of option names to values")
-            sections[key] = value
-        for key, reserved in (("train", RESERVED_TRAIN), ("evaluate", RESERVED_EVALUATE)):
-            clash = sorted(set(sections[key]) & reserved)
-            if clash:
-                raise UsageError(f"{what}: {key} may not set {', '.join(clash)} (the sweep sets them per trial)")
-        searched = set(sections["grid"]) | set(sections["random"])
-        clash = sorted((set(sections["grid"]) & set(sections["random"])) | (searched & set(sections["train"]))
-                       | (searched & RESERVED_TRAIN))
-        if clash:
-            raise UsageError(f"{what}: option(s) {', '.join(clash)} set in more than one of train / grid / random "
-                             "(or reserved for the sweep)")
-        for option, values in sections["grid"].items():
-            if not isinstance(values, list) or not values:
-                raise UsageError(f"{what}: grid option {option!r} must list its values, e.g. [3.0e-4, 1.0e-4]")
-        for option, spec in sections["random"].items():
-            _check_distribution(option, spec, what)
-        samples = _integer(raw.get("samples", 1), "samples", 1, 10_000, what)
-        if samples > 1 and not sections["random"]:
-            raise UsageError(f"{what}: samples {samples} without random options would repeat the same configuration")
-        search_seed = _integer(raw.get("search-seed", 0), "search-seed", 0, 2**32 - 1, what)
-        retries = _integer(raw.get("retries", 2), "retries", 0, 100, what)
-        cpus = raw.get("cpus-per-trial", 1)
-        if isinstance(cpus, bool) or not isinstance(cpus, (int, float)) or not 0 < cpus <= 1024:
-            raise UsageError(f"{what}: cpus-per-trial {cpus!r} must be a number in (0, 1024]")
-        spec = cls(name, tuple(tasks), tuple(seeds), sections["train"], sections["grid"], sections["random"], samples,
-                   search_seed, sections["evaluate"], retries, float(cpus), source)
-        configurations = spec._draw_configurations()
-        n_trials = len(tasks) * len(configurations) * len(seeds)
+            keys = (f.alias or name for name, f in SweepConfig.model_fields.items())
+            raise UsageError(f"{what}: expected a mapping of keys ({', '.join(keys)})")
+        try:
+            config = SweepConfig.model_validate(raw)
+        except ValidationError as error:
+            raise listed(what, schema_problems(error)) from None
+        name = config.name if config.name is not None else Path(source).stem
+        if not name.replace("-", "").replace("_", "").isalnum() or not name.isascii() or len(name) > 64:
+            raise UsageError(f"{what}: name: the file's name {shown(name)} is not a sweep name (letters, digits, "
+                             "- and _); give one with name:")
+        n_trials = len(config.tasks) * config.n_configurations() * len(config.seeds)
         if n_trials > MAX_TRIALS:
             raise UsageError(f"{what}: {n_trials:,} trials (tasks x configurations x seeds) is above {MAX_TRIALS:,}")
-        spec = replace(spec, configurations=configurations)
-        spec.trials()  # every trial's command lines parse
+        spec = cls(name, tuple(config.tasks), tuple(config.seeds), dict(config.train), dict(config.grid),
+                   {option: distribution.model_dump() for option, distribution in config.random.items()},
+                   config.samples, config.search_seed, dict(config.evaluate), config.retries,
+                   float(config.cpus_per_trial), source)
+        spec = replace(spec, configurations=spec._draw_configurations())
+        problems = spec.problems()
+        if problems:
+            raise listed(what, problems)
         return spec
 
     def _draw_configurations(self) -> tuple[dict, ...]:
@@ -265,64 +444,95 @@ class SweepSpec:
                 configurations.append({**dict(zip(options, point)), **drawn})
         return tuple(configurations)
 
+    def _config_id(self, index: int) -> str:
+        return f"c{index:0{max(2, len(str(len(self.configurations) - 1)))}d}"
+
     def trials(self) -> list[Trial]:
-        """Every planned trial, task-major, then configuration, then seed; each command line checked by the
-        command's own parser (UsageError names the first that does not parse)."""
+        """Every planned trial, task-major, then configuration, then seed (command lines built, not checked:
+        :meth:`problems` checks them)."""
         train_parser, evaluate_parser = command_parser("train"), command_parser("evaluate")
         fixed_train = training_argv(self.train, "train", train_parser)
         fixed_evaluate = option_argv(self.evaluate, "evaluate", evaluate_parser)
-        planned, checked = [], set()
-        width = max(2, len(str(len(self.configurations) - 1)))
+        searched = [training_argv(values, f"configuration {self._config_id(i)}", train_parser)
+                    for i, values in enumerate(self.configurations)]
+        return [Trial(f"{task}-{self._config_id(i)}-s{seed}", task, self._config_id(i), seed, values,
+                      ("--task", task, "--seed", str(seed), *fixed_train, *searched[i]), ("--task", task, *fixed_evaluate))
+                for task in self.tasks for i, values in enumerate(self.configurations) for seed in self.seeds]
+
+    def problems(self) -> list[str]:
+        """Every problem of the trials, before Ray starts: each option known to its command and parsed by its
+        parser, each configuration's training settings valid for each task (the recipe's pydantic model,
+        :mod:`crop_agent_ros.learning.hyperparameters`), the evaluation's options valid for each task."""
+        train_parser, evaluate_parser = command_parser("train"), command_parser("evaluate")
+        problems = []
+        for what, check in [("train", lambda: training_argv(self.train, "train", train_parser)),
+                            ("evaluate", lambda: option_argv(self.evaluate, "evaluate", evaluate_parser))]:
+            try:
+                check()
+            except UsageError as error:
+                problems.append(str(error))
+        if problems:
+            return problems
+        for index, values in enumerate(self.configurations):
+            config = self._config_id(index)
+            try:
+                training_argv(values, f"configuration {config}", train_parser)
+            except UsageError as error:
+                problems.append(str(error))
+        if problems:
+            return problems
+        trials = self.trials()
         for task in self.tasks:
-            for index, values in enumerate(self.configurations):
-                config = f"c{index:0{width}d}"
-                searched = training_argv(values, f"configuration {config}", train_parser)
-                for seed in self.seeds:
-                    trial_train = ("--task", task, "--seed", str(seed), *fixed_train, *searched)
-                    evaluate_argv = ("--task", task, *fixed_evaluate)
-                    _check_training(task, config, train_parser.parse_args([*trial_train, "--out", "x"]), checked)
-                    evaluate_parser.parse_args([*evaluate_argv, "--agents", f"{AGENT}=x", "--out", "x"])
-                    planned.append(Trial(f"{task}-{config}-s{seed}", task, config, seed, values, trial_train,
-                                         evaluate_argv))
-        return planned
+            problems += _evaluation_problems(task, trials[self.tasks.index(task) * len(self.configurations)
+                                                         * len(self.seeds)].evaluate_argv, evaluate_parser)
+        checked = set()
+        for trial in trials:
+            try:
+                args = train_parser.parse_args([*trial.train_argv, "--out", "x"])
+            except UsageError as error:
+                problems.append(f"configuration {trial.config}: {error}")
+                continue
+            key = (trial.task, args.algorithm, tuple(args.hyperparams))
+            if key not in checked:
+                checked.add(key)
+                problem = _training_problem(trial.task, args)
+                if problem:
+                    problems.append(f"configuration {trial.config} on task {trial.task}: crop-sim train: {problem}")
+        return problems
 
 
-def _check_training(task: str, config: str, args: argparse.Namespace, checked: set) -> None:
-    """The trial's training settings resolve and validate (:mod:`crop_agent_ros.learning.hyperparameters`), before
-    Ray starts; ``checked`` keeps the combinations already seen."""
-    key = (task, args.algorithm, tuple(args.hyperparams))
-    if key in checked:
-        return
-    from ..learning.train import resolved_settings
+@functools.lru_cache(maxsize=64)
+def _scenario(task: str):
+    from crop_sim_ros.task.scenario import get_scenario
+    return get_scenario(task)
+
+
+def _training_problem(task: str, args: argparse.Namespace) -> str:
+    """What is wrong with a trial's training settings on ``task`` (:func:`hyperparameters.resolve`), or ''."""
+    from ..learning.hyperparameters import parse_overrides, resolve
     try:
-        resolved_settings(task, args.algorithm, args.hyperparams)
+        with user_input(f"--task {task}", (KeyError, ValueError, OSError)):
+            scenario = _scenario(task)
+        resolve(scenario.name, args.algorithm, scenario.is_family_task, parse_overrides(args.hyperparams))
     except UsageError as error:
-        raise UsageError(f"configuration {config} on task {task}: crop-sim train: {error}") from None
-    checked.add(key)
+        return str(error)
+    return ""
 
 
-def _integer(value, name: str, low: int, high: int, what: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise UsageError(f"{what}: {name} {value!r} must be an integer in {low}..{high:,}")
-    return value
-
-
-def _check_distribution(option: str, spec, what: str) -> None:
-    if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in DISTRIBUTIONS:
-        raise UsageError(f"{what}: random option {option!r} must be one of "
-                         + ", ".join(f"{{{d}: [...]}}" for d in DISTRIBUTIONS) + f", not {spec!r}")
-    kind, args = next(iter(spec.items()))
-    if kind == "choice":
-        if not isinstance(args, list) or not args:
-            raise UsageError(f"{what}: random option {option!r}: choice needs a non-empty list")
-        return
-    numbers = isinstance(args, list) and len(args) == 2 and all(
-        isinstance(a, (int, float)) and not isinstance(a, bool) for a in args)
-    if not numbers or not args[0] < args[1] or (kind == "loguniform" and args[0] <= 0) or (
-            kind == "randint" and not all(isinstance(a, int) for a in args)):
-        raise UsageError(f"{what}: random option {option!r}: {kind} needs [low, high] with low < high"
-                         + (" and low > 0" if kind == "loguniform" else "")
-                         + (" (integers)" if kind == "randint" else ""))
+def _evaluation_problems(task: str, evaluate_argv: tuple[str, ...], parser: argparse.ArgumentParser) -> list[str]:
+    """What is wrong with the trials' ``crop-sim evaluate --task`` options on ``task``: the parser's, the
+    command's range checks, a task that is not a family task, an unknown evaluation set."""
+    from ..learning import evaluate_task
+    try:
+        args = parser.parse_args([*evaluate_argv, "--agents", f"{AGENT}=x", "--out", "x"])
+        evaluate_task._check_arguments(args)
+        scenario = evaluate_task._task(task)
+        with user_input("--far-seasons", (ValueError,)):
+            evaluate_task._chosen_sets(evaluate_task.evaluation_sets(scenario, args.far_seasons, args.far_seed),
+                                       args.sets)
+    except UsageError as error:
+        return [f"evaluate on task {task}: {error}"]
+    return []
 
 
 def _draw(rng: np.random.Generator, spec: dict):
@@ -502,22 +712,22 @@ def run(args) -> int:
     probe(check_address(args.address))
     out = (args.out if args.out is not None else Path("runs") / "sweeps" / spec.name).resolve()
     experiment = out / "tune"
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"--out: {out} exists and is not a folder")
+    check_output_directory(out)
     if args.resume and not experiment.is_dir():
         raise UsageError(f"--resume: {out} holds no sweep to resume (no {experiment.name}/ folder)")
     if not args.resume and experiment.exists():
         raise UsageError(f"--out: {out} already holds a sweep; add --resume to continue it, or choose another --out")
     if args.resume:
-        recorded = json.loads((out / "sweep.json").read_text())
-        if recorded["trials"] != [t.as_dict() for t in spec.trials()]:
+        with user_input(f"--resume: {out / 'sweep.json'}", (OSError, UnicodeDecodeError, ValueError)):
+            recorded = json.loads((out / "sweep.json").read_text(encoding="utf-8"))
+        if not isinstance(recorded, dict) or recorded.get("trials") != [t.as_dict() for t in spec.trials()]:
             raise UsageError(f"--resume: {args.config} plans other trials than the sweep in {out} "
                              f"(its configuration is {out / 'sweep.json'})")
     out.mkdir(parents=True, exist_ok=True)
     trials = spec.trials()
-    (out / "sweep.json").write_text(json.dumps({"name": spec.name, "config_file": str(args.config),
-                                                "configurations": list(spec.configurations),
-                                                "trials": [t.as_dict() for t in trials]}, indent=1) + "\n")
+    write_json_atomic(out / "sweep.json", {"name": spec.name, "config_file": str(args.config),
+                                           "configurations": list(spec.configurations),
+                                           "trials": [t.as_dict() for t in trials]})
     os.environ.setdefault("RAY_AIR_NEW_OUTPUT", "0")
     from .cluster import connect, disconnect
     cluster = connect(args.address, args.cpus)
@@ -534,13 +744,9 @@ def run(args) -> int:
     rows = table_rows(trials, results, out)
     best = best_configurations(spec, rows, out)
     write_outputs(out, spec, rows, best, cluster, time.perf_counter() - started)
-    failed = [r["trial"] for r in rows if r["status"] == "failed"]
-    unfinished = [r["trial"] for r in rows if r["status"] == "unfinished"]
-    print(f"sweep {spec.name}: {len(rows) - len(failed) - len(unfinished)}/{len(rows)} trials finished"
-          + (f"; FAILED: {', '.join(failed)}" if failed else "")
-          + (f"; interrupted, unfinished: {', '.join(unfinished)} (continue with --resume)" if unfinished else "")
-          + f"; wrote {out}/table.csv, table.json, table.md, best.json, sweep.png", file=sys.stderr)
-    return EXIT_INTERRUPTED if unfinished else 1 if failed else 0
+    line, status = summary_line(spec.name, rows, out)
+    print(line, file=sys.stderr)
+    return status
 
 
 def _ray_log_to(path: Path) -> None:
@@ -593,8 +799,9 @@ def table_rows(trials: list[Trial], results: dict, out: Path) -> list[dict]:
         elif metrics.get("stage") != "evaluated":   # the sweep was interrupted before the trial ended
             stage = metrics.get("stage")
             status, error = "unfinished", f"interrupted after stage {stage!r}" if stage else ""
-        else:
-            status, error = "finished", ""
+        else:   # finished only if its evaluation wrote its table
+            error = evaluation_table_problem(out / "trials" / trial.key / "eval" / "table.json")
+            status = "failed" if error else "finished"
         row = {"trial": trial.key, "task": trial.task, "config": trial.config, "seed": trial.seed,
                "status": status, "error": error, "attempts": attempts,
                "node": metrics.get("node", ""), "node_address": metrics.get("address", ""),
@@ -606,6 +813,32 @@ def table_rows(trials: list[Trial], results: dict, out: Path) -> list[dict]:
                         or "/" in k})
         rows.append(row)
     return rows
+
+
+def evaluation_table_problem(path: Path) -> str:
+    """'' if ``path`` holds an evaluation's table (a JSON object with its sets), else what is wrong with it."""
+    try:
+        table = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return f"its evaluation wrote no table ({path.name} is missing)"
+    except (OSError, UnicodeDecodeError, ValueError) as error:
+        return f"its evaluation's {path.name} is unreadable ({type(error).__name__})"
+    if not isinstance(table, dict) or not isinstance(table.get("sets"), list):
+        return f"its evaluation's {path.name} holds no table of sets"
+    return ""
+
+
+def summary_line(name: str, rows: list[dict], out: Path) -> tuple[str, int]:
+    """The sweep's last line and its exit status: 0 when every trial finished, 1 when some failed (a trial
+    whose evaluation wrote no table included), EXIT_INTERRUPTED when some are unfinished."""
+    failed = [r["trial"] for r in rows if r["status"] == "failed"]
+    unfinished = [r["trial"] for r in rows if r["status"] == "unfinished"]
+    finished = sum(1 for r in rows if r["status"] == "finished")
+    line = (f"sweep {name}: {finished}/{len(rows)} trials finished"
+            + (f"; {len(failed)} FAILED: {', '.join(failed)}" if failed else "")
+            + (f"; interrupted, unfinished: {', '.join(unfinished)} (continue with --resume)" if unfinished else "")
+            + f"; wrote {out}/table.csv, table.json, table.md, best.json, sweep.png")
+    return line, EXIT_INTERRUPTED if unfinished else 1 if failed else 0
 
 
 def best_configurations(spec: SweepSpec, rows: list[dict], out: Path) -> dict:
@@ -644,17 +877,13 @@ def best_configurations(spec: SweepSpec, rows: list[dict], out: Path) -> dict:
 
 def write_outputs(out: Path, spec: SweepSpec, rows: list[dict], best: dict, cluster, wall_s: float) -> None:
     from ..learning.evaluate_task import _plain
-    columns = list(dict.fromkeys(k for row in rows for k in row))
-    with open(out / "table.csv", "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(rows)
+    write_csv_atomic(out / "table.csv", list(dict.fromkeys(k for row in rows for k in row)), rows)
     result = {"name": spec.name, "config_file": spec.source, "cluster": cluster.describe(),
               "nodes": list(cluster.nodes), "wall_s": round(wall_s, 1), "command": "crop-sim " + " ".join(sys.argv[1:]),
               "configurations": list(spec.configurations), "rows": rows, "best": best}
-    (out / "table.json").write_text(json.dumps(_plain(result), indent=1, allow_nan=False) + "\n", encoding="utf-8")
-    (out / "best.json").write_text(json.dumps(_plain(best), indent=1, allow_nan=False) + "\n", encoding="utf-8")
-    (out / "table.md").write_text(markdown(spec, rows, best), encoding="utf-8")
+    write_json_atomic(out / "table.json", _plain(result), allow_nan=False)
+    write_json_atomic(out / "best.json", _plain(best), allow_nan=False)
+    write_text_atomic(out / "table.md", markdown(spec, rows, best))
     plot(out / "sweep.png", spec, rows)
 
 
@@ -720,7 +949,7 @@ def plot(path: Path, spec: SweepSpec, rows: list[dict]) -> None:
         ax.set_title(f"{task}" + (f" ({len(failed)} trial(s) not finished)" if failed else ""), fontsize=9)
     fig.suptitle(f"sweep {spec.name}: agent regret per configuration (points: seeds)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure_atomic(fig, path, dpi=110)
     plt.close(fig)
 
 

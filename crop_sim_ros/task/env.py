@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -10,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 
 from ..model.simple import SCALAR_MATH
+from ..usage import shown
 from ..weather import WeatherSeries
 from . import core
 from .scenario import Scenario, get_scenario
@@ -46,8 +48,43 @@ def irrigation_mm(action) -> float:
             return irrigation_mm(action[0])
         action = action[0]
     if not isinstance(action, _NUMBER_TYPES) or isinstance(action, (bool, np.bool_)):
-        raise TypeError(f"action must be a number of mm (int or float), got {type(action).__name__} {action!r}")
+        raise TypeError(f"action must be a number of mm (int or float), got {type(action).__name__} {shown(action)}")
     return float(action)
+
+
+def reset_options(options, known: tuple[str, ...]) -> dict[str, Any]:
+    """A copy of ``reset``'s ``options``: a mapping (or None) whose keys are all in ``known``. TypeError for
+    anything else than a mapping, ValueError naming the unknown keys."""
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise TypeError(f"reset options must be a dict, got {type(options).__name__}")
+    unknown = [key for key in options if key not in known]
+    if unknown:
+        raise ValueError(f"unknown reset options {shown(unknown)}; known: {', '.join(known)}")
+    return dict(options)
+
+
+def season_indices(value, count: int, shape: tuple[int, ...] = ()) -> np.ndarray:
+    """reset's ``season`` option as an array of ``shape`` (a scalar also fills a shape (N,)): whole numbers (Python
+    or numpy integers; never a bool, a float such as 1.7 or a string such as "3") in 0..count-1. TypeError or
+    ValueError naming the option."""
+    given = np.asarray(value) if not isinstance(value, (bool, np.bool_)) else None
+    if given is None or given.dtype.kind not in "iu":
+        raise TypeError(f"season: expected a whole number (int), got {type(value).__name__} {shown(value)}")
+    if given.shape not in ((), shape):
+        raise ValueError(f"season: expected one index or an array of shape {shape}, got shape {given.shape}")
+    if given.size and (given.min() < 0 or given.max() >= count):
+        raise ValueError(f"season: indices must be in 0..{count - 1}")
+    return np.broadcast_to(given.astype(np.int64), shape)
+
+
+def weather_option(value, name: str = "weather") -> WeatherSeries:
+    """reset's ``weather`` option (or an item of the vector environment's ``weathers``): a WeatherSeries;
+    TypeError naming the option otherwise."""
+    if not isinstance(value, WeatherSeries):
+        raise TypeError(f"{name}: expected a WeatherSeries, got {type(value).__name__}")
+    return value
 
 
 class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
@@ -132,6 +169,9 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
     env.reset(options={"weather": weather_series})          # a given WeatherSeries, sown on its first day
     ```
 
+    A season is a whole number (an int or a numpy integer: 1.7, "3" and True are refused), a weather a
+    WeatherSeries, and any other option key is refused (TypeError or ValueError naming the option).
+
     Every built-in scenario is registered as ``crop-sim/<name>-v0`` (``crop_sim_ros.task.gym_id``).
     ``data_dir``: where the scenario's weather files are (default ``../shared/data`` next to the
     repository). Same seed and same actions give the same episode, bit for bit.
@@ -169,22 +209,18 @@ class IrrigationEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        options = dict(options or {})
-        weather: WeatherSeries | None = options.pop("weather", None)
-        season = options.pop("season", None)
-        if options:
-            raise ValueError(f"unknown reset options {sorted(options)}; known: weather, season")
+        options = reset_options(options, ("weather", "season"))
+        weather, season = options.get("weather"), options.get("season")
+        if weather is not None and season is not None:
+            raise ValueError("reset options: give weather or season, not both")
         if weather is not None:
-            self._table = core.season_table(self.scenario, [self.scenario.prepare(weather)])
+            self._table = core.season_table(self.scenario, [self.scenario.prepare(weather_option(weather))])
             self._season = -1
         else:
             self._table = self.seasons
             if season is None:
                 season = int(self.np_random.integers(len(self.seasons)))
-            elif not 0 <= int(season) < len(self.seasons):
-                raise ValueError(f"season {season} is outside 0..{len(self.seasons) - 1} of scenario "
-                                 f"{self.scenario.name!r}")
-            self._season = int(season)
+            self._season = int(season_indices(season, len(self.seasons)))
         self._state = core.initial(self._one, max(self._season, 0), self.np_random)
         k = self._state.season
         # What stays the same all season, computed once per reset (the step is the hot path).

@@ -28,8 +28,16 @@ Weather sources (``weather.kind``):
   each prepared as its own scenario prepares it (its sowing date, site and season length): training across
   climates.
 
-A scenario file may derive from another (``base: NAME``, a built-in name or a YAML path beside it): it takes
-the base's fields and replaces those it names (``noise``, ``economics`` and ``limits`` field by field). The
+A scenario file is read by :mod:`crop_sim_ros.safe_yaml` (a regular file of at most 64 KiB, no YAML aliases,
+nesting at most 32 deep, no duplicate keys) and checked by a strict schema derived from these dataclasses
+(:mod:`crop_sim_ros.task.schema`, with the ranges of BOUNDS): a number is a number (not true/false, not text;
+an integer where a float belongs is that float), finite and in its range, a name one of its choices, every
+required field present and no unknown one; one ValueError lists every problem with its path
+(``limits.quota_mm: true is not a finite number in [0, 10000]``), never quoting more of the file than a short
+name. A scenario file may derive from another (``base: NAME``, a built-in name or a YAML path beside it): it
+takes the base's fields and replaces those it names (``noise``, ``economics`` and ``limits`` field by field),
+in a chain of at most MAX_BASE_CHAIN (32) files without a cycle; a base that is not a scenario file is refused
+by its name, never its contents. The
 task family's scenarios (``benton-money``, ``benton-quota``, ``benton-capacity``, ``benton-sensing``,
 ``benton-blind``, ``climates-quota``, ``climates3-quota``, ``climates4-quota``, ``climates6-quota``,
 ``climates8-quota``, ``climates10-quota``, ``climates12-quota``, ``climates-spread-quota``, ``benton-early-quota``,
@@ -74,17 +82,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from ..model import FieldParameters, Management, UnknownNameError, crop_library, field_parameters
 from ..model.et0 import ET0_METHODS
+from ..safe_yaml import read_yaml
 from ..weather import GENERATOR_NAMES, Site, WeatherError, WeatherSeries, read_agweathernet_csv, read_dssat_wth
 from ..weather.csv_readers import read_plain_csv
-from ..weather.generator import (MAX_DELTA_DEGC, MAX_RADIATION_FACTOR, MAX_RAIN_FACTOR, MIN_RADIATION_FACTOR,
-                                 MIN_RAIN_FACTOR, ClimateSpread, climate_name, climate_parameters, generate_seasons,
+from ..weather.generator import (MAX_DELTA_DEGC, MAX_RADIATION_FACTOR, MAX_RAIN_FACTOR, MAX_SOWING_DELAY_DAYS,
+                                 MIN_RADIATION_FACTOR, MIN_RAIN_FACTOR, ClimateSpread, climate_name, climate_parameters, generate_seasons,
                                  generate_spread_seasons)
 from .layout import EXTENDED, PAPER, ObservationLayout
-from .terms import Economics, FarmLimits, check_number as _check_number
+from .schema import Rules, shown, validated
+from .terms import (MAX_EVENT_COST_USD, MAX_NOMINAL_SEASON_DAYS, MAX_PRICE_USD_PER_T, MAX_QUOTA_MM,
+                    MAX_WATER_COST_USD_PER_MM, Economics, FarmLimits, check_number as _check_number)
 
 # The environment variable that names the reference data directory (see default_data_dir).
 DATA_DIR_ENV = "CROP_SIM_DATA_DIR"
@@ -101,6 +111,33 @@ TASK_WEATHER_VARIABLES = ("tmax_degc", "tmin_degc", "srad_mj_m2", "rain_mm", "va
 MAX_SEASON_DAYS = 730
 MAX_GENERATED_SEASONS = 10_000
 MAX_GENERATED_DAYS = 2_000_000
+MAX_NOISE_STD = 1e6  # any observation noise standard deviation, in its variable's unit (float32 stays finite)
+MIN_ELEVATION_M, MAX_ELEVATION_M = -500.0, 9000.0  # a site's elevation (the Dead Sea shore to above Everest)
+MAX_SEED = 2**63 - 1
+MAX_BASE_CHAIN = 32  # files in a chain of ``base:`` (the built-ins use 3 at most)
+# The ranges of a scenario's numbers (the schema's, and the checks of the dataclasses built in code).
+BOUNDS: dict[str, tuple[float | None, float | None]] = {
+    "co2_ppm": (0.0, 5000.0), "irrigation_cost_per_mm": (None, 0.0), "max_irrigation_mm": (0.0, 1000.0),
+    "max_season_days": (1, MAX_SEASON_DAYS), "noise.*": (0.0, MAX_NOISE_STD),
+    "site.latitude_deg": (-90.0, 90.0), "site.longitude_deg": (-180.0, 360.0),
+    "site.elevation_m": (MIN_ELEVATION_M, MAX_ELEVATION_M),
+    "weather.seed": (0, MAX_SEED), "weather.n_seasons": (1, MAX_GENERATED_SEASONS),
+    **{f"weather.{name}": (-MAX_DELTA_DEGC, MAX_DELTA_DEGC) for name in ("warming_degc", "drying_degc",
+                                                                          "diurnal_range_degc")},
+    "weather.rain_factor": (MIN_RAIN_FACTOR, MAX_RAIN_FACTOR),
+    "weather.radiation_factor": (MIN_RADIATION_FACTOR, MAX_RADIATION_FACTOR),
+    "weather.spread.warming_degc": (-MAX_DELTA_DEGC, MAX_DELTA_DEGC),
+    "weather.spread.drying_degc": (-MAX_DELTA_DEGC, MAX_DELTA_DEGC),
+    "weather.spread.rain_factor": (MIN_RAIN_FACTOR, MAX_RAIN_FACTOR),
+    "weather.spread.sowing_delay_days": (0, MAX_SOWING_DELAY_DAYS),
+    "economics.tuber_price_usd_per_t": (0.0, MAX_PRICE_USD_PER_T),
+    "economics.tuber_dry_matter_fraction": (0.05, 1.0),
+    "economics.water_price_usd_per_mm": (0.0, MAX_WATER_COST_USD_PER_MM),
+    "economics.pumping_energy_usd_per_mm": (0.0, MAX_WATER_COST_USD_PER_MM),
+    "economics.event_cost_usd": (0.0, MAX_EVENT_COST_USD),
+    "limits.quota_mm": (0.0, MAX_QUOTA_MM), "limits.capacity_mm_per_day": (0.0, 1000.0),
+    "limits.nominal_season_days": (1, MAX_NOMINAL_SEASON_DAYS), "limits.paw_dropout_probability": (0.0, 1.0),
+}
 
 
 def _check_count(name: str, value: Any, high: int) -> None:
@@ -143,7 +180,8 @@ class ObservationNoise:
 
     def __post_init__(self) -> None:
         for item in fields(self):
-            object.__setattr__(self, item.name, _check_number(f"noise.{item.name}", getattr(self, item.name), 0.0))
+            object.__setattr__(self, item.name, _check_number(f"noise.{item.name}", getattr(self, item.name),
+                                                              *BOUNDS["noise.*"]))
 
     @classmethod
     def none(cls) -> "ObservationNoise":
@@ -291,9 +329,9 @@ class Scenario:
             raise ValueError(f"weather: expected a WeatherSource, got {self.weather!r}")
         if self.weather.kind == "generator" and not isinstance(self.sowing_date, date):
             raise ValueError(f"sowing_date: a generator scenario needs a date, got {self.sowing_date!r}")
-        _check_number("co2_ppm", self.co2_ppm, 0.0, 5000.0)
-        _check_number("irrigation_cost_per_mm", self.irrigation_cost_per_mm, high=0.0)
-        _check_number("max_irrigation_mm", self.max_irrigation_mm, 0.0, 1000.0)
+        for name in ("co2_ppm", "irrigation_cost_per_mm", "max_irrigation_mm"):
+            low, high = BOUNDS[name]
+            _check_number(name, getattr(self, name), -np.inf if low is None else low, np.inf if high is None else high)
         _check_count("max_season_days", self.max_season_days, MAX_SEASON_DAYS)
         if self.weather.kind == "generator" and self.weather.n_seasons * self.max_season_days > MAX_GENERATED_DAYS:
             raise ValueError(f"weather.n_seasons x max_season_days: {self.weather.n_seasons} x "
@@ -429,117 +467,127 @@ def _read_weather(path: str, fmt: str) -> WeatherSeries:
 
 # --- YAML ---------------------------------------------------------------------------------------------
 
-def _as_date(name: str, value: Any) -> date:
-    if isinstance(value, date):
-        return value
-    try:
-        return date.fromisoformat(str(value))
-    except ValueError:
-        raise ValueError(f"{name}: {value!r} is not an ISO date (YYYY-MM-DD)") from None
-
-
-def _take(mapping: dict, allowed: set[str], where: str) -> dict:
-    if not isinstance(mapping, dict):
-        raise ValueError(f"{where}: expected a mapping, got {mapping!r}")
-    unknown = sorted(set(mapping) - allowed)
-    if unknown:
-        raise ValueError(f"{where}.{unknown[0]}: unknown field (known: {', '.join(sorted(allowed))})")
-    return dict(mapping)
+# What a scenario file may hold besides the schema's fields, and what it may not set.
+SCHEMA_RULES = Rules(
+    bounds=BOUNDS,
+    choices={"weather.kind": WEATHER_KINDS, "weather.format": WEATHER_FORMATS,
+             "weather.seasons.format": WEATHER_FORMATS, "weather.generator": GENERATOR_PARAMETERS,
+             "weather.climate": GENERATOR_PARAMETERS, "et0_method": ET0_METHODS},
+    extra={"weather": {"path": str, "format": str}},  # a 'file' source's one season
+    exclude=frozenset({"data_dir"}))
+# The top-level keys of a scenario file: Scenario's fields and ``base``.
+SCENARIO_FILE_KEYS = frozenset(f.name for f in fields(Scenario) if f.name != "data_dir") | {"base"}
 
 
 def scenario_from_dict(values: dict, data_dir: str | Path | None = None) -> Scenario:
-    """A Scenario from a YAML mapping; ValueError names the field at fault."""
-    scalar_fields = {f.name for f in fields(Scenario)} - {"data_dir"}
-    values = _take(values, scalar_fields, "scenario")
+    """A Scenario from a YAML mapping. ValueError: first every problem the schema finds, each with its path
+    (``limits.quota_mm: ...``: types, ranges, required and unknown fields), then the first problem
+    across fields (a 'file' source without a sowing date, ...)."""
+    values = validated(Scenario, SCHEMA_RULES, values)
+    weather = values.pop("weather")
     sowing = values.get("sowing_date")
-    sowing = None if sowing is None else _as_date("sowing_date", sowing)
-    if "weather" not in values:
-        raise ValueError("weather: missing (a mapping with kind: generator, file or seasons)")
-    weather = _take(values.pop("weather"), {*SOURCE_FIELDS, "seasons", "path", "format"}, "weather")
-    kind = weather.get("kind")
+    kind = weather["kind"]
     if kind == "file":
         if sowing is None:
             raise ValueError("sowing_date: a 'file' weather source needs the scenario's sowing date")
-        weather["seasons"] = [{"path": weather.pop("path", None), "format": weather.pop("format", None),
-                               "sowing_date": sowing}]
-    seasons = []
-    for i, entry in enumerate(weather.pop("seasons", []) or []):
-        entry = _take(entry, {"path", "format", "sowing_date"}, f"weather.seasons[{i}]")
-        if not entry.get("path"):
-            raise ValueError(f"weather.seasons[{i}].path: missing")
-        seasons.append(SeasonFile(str(entry["path"]), str(entry.get("format")),
-                                  _as_date(f"weather.seasons[{i}].sowing_date", entry.get("sowing_date"))))
+        for key in ("path", "format"):
+            if key not in weather:
+                raise ValueError(f"weather.{key}: missing (a 'file' source names its file and its format)")
+        weather["seasons"] = [{"path": weather.pop("path"), "format": weather.pop("format"), "sowing_date": sowing}]
+    extra = sorted({"path", "format"} & set(weather))
+    if extra:
+        raise ValueError(f"weather.{extra[0]}: not a field of a {kind!r} source")
+    seasons = tuple(SeasonFile(**entry) for entry in weather.pop("seasons", None) or ())
     if weather.get("spread") is not None:
         try:
             weather["spread"] = ClimateSpread.from_dict(weather["spread"])
         except WeatherError as error:  # it names the spread's field: say where the spread is
             raise ValueError(f"weather.{error}") from None
-    if kind == "mixture":
-        names = weather.get("mixture")
-        weather["mixture"] = tuple(names) if isinstance(names, list) else names
-    extra = set(weather) - SOURCE_FIELDS
-    if extra:
-        raise ValueError(f"weather.{sorted(extra)[0]}: not a field of a {kind!r} source")
-    source = WeatherSource(seasons=tuple(seasons), **weather)
+    if "mixture" in weather:
+        weather["mixture"] = tuple(weather["mixture"])
+    source = WeatherSource(seasons=seasons, **weather)
     if "noise" in values:
-        noise = _take(values["noise"], {f.name for f in fields(ObservationNoise)}, "noise")
-        values["noise"] = ObservationNoise(**noise)
+        values["noise"] = ObservationNoise(**values["noise"])
     if values.get("site") is not None:
-        site = _take(values["site"], {f.name for f in fields(Site)}, "site")
         try:
-            values["site"] = Site(**site)
-        except (TypeError, ValueError) as error:
+            values["site"] = Site(**values["site"])
+        except WeatherError as error:
             raise ValueError(f"site: {error}") from None
-    for key, kind in (("economics", Economics), ("limits", FarmLimits)):
-        if values.get(key) is None:
-            values.pop(key, None)
-        elif not isinstance(values[key], dict):
-            raise ValueError(f"{key}: expected a mapping, got {values[key]!r}")
-        else:
-            values[key] = kind.from_dict(values[key])
-    values["sowing_date"] = sowing
+    if values.get("economics") is not None:
+        values["economics"] = Economics.from_dict(values["economics"])
+    if "limits" in values:
+        values["limits"] = FarmLimits.from_dict(values["limits"])
     return Scenario(weather=source, data_dir=None if data_dir is None else Path(data_dir), **values)
 
 
-# libyaml's safe loader where PyYAML has it (the same constructor as yaml.safe_load, about 20x faster: the
-# registration reads every built-in scenario's file when crop_sim_ros.task is imported).
-_YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 # Mappings a derived scenario merges with its base's, field by field (the rest it replaces whole).
 _MERGED_MAPPINGS = ("noise", "economics", "limits")
 
 
-def _yaml_mapping(path: Path, chain: tuple[Path, ...] = ()) -> dict:
-    """The scenario mapping of the YAML file ``path``, with its ``base`` (a built-in scenario name or a YAML
-    path relative to this file) resolved: the base's mapping updated by this file's fields."""
-    if path in chain:
-        raise ValueError(f"base: {' -> '.join(str(p) for p in chain + (path,))} is a cycle")
-    values = yaml.load(path.read_text(encoding="utf-8"), Loader=_YAML_LOADER)
+def _base_path(base: Any, derived: Path) -> Path:
+    """The file of ``base:`` in the scenario file ``derived``: a built-in scenario's, or a path beside it."""
+    if not isinstance(base, str) or not base or len(base) > 1000:
+        raise ValueError(f"base: {shown(base)} is not the name of a built-in scenario or a YAML path")
+    built_in = SCENARIO_DIR / f"{base}.yaml"
+    path = built_in if "/" not in base and built_in.is_file() else derived.parent / base
+    if not path.exists():
+        raise ValueError(f"base: {shown(base)} is neither a built-in scenario ({', '.join(scenario_names())}) nor a "
+                         "file beside it")
+    return path
+
+
+def _scenario_file(path: Path, derived: Path | None) -> dict:
+    """The mapping of the scenario file ``path`` (a base of ``derived``, or None); ValueError (naming the file,
+    never quoting what it holds) for anything that is not a scenario file."""
+    what = str(path) if derived is None else f"base: {path}"
+    values = read_yaml(path, source=what)
     if not isinstance(values, dict):
-        raise ValueError(f"expected a mapping of scenario fields, got {type(values).__name__}")
-    base = values.pop("base", None)
-    if base is None:
-        return values
-    base_path = SCENARIO_DIR / f"{base}.yaml" if (SCENARIO_DIR / f"{base}.yaml").is_file() else path.parent / str(base)
-    if not base_path.is_file():
-        raise ValueError(f"base: {base!r} is neither a built-in scenario ({', '.join(scenario_names())}) nor a file")
-    merged = _yaml_mapping(base_path, chain + (path,))
-    merged.pop("description", None)
-    for key, value in values.items():
-        if key in _MERGED_MAPPINGS and isinstance(value, dict) and isinstance(merged.get(key), dict):
-            merged[key] = {**merged[key], **value}
-        else:
-            merged[key] = value
+        kind = {str: "text", list: "a list", type(None): "nothing"}.get(type(values), "a single value")
+        raise ValueError(f"{what} is not a scenario file: it holds {kind}, not a mapping of scenario fields")
+    unknown = [key for key in values if key not in SCENARIO_FILE_KEYS]
+    if derived is not None and unknown:  # the file's own unknown fields the schema names; a base's, not
+        raise ValueError(f"{what} is not a scenario file: {len(unknown)} of its {len(values)} top-level keys are "
+                         "not scenario fields")
+    return values
+
+
+def _yaml_mapping(path: Path) -> dict:
+    """The scenario mapping of the YAML file ``path``, with its ``base`` (a built-in scenario name or a YAML
+    path relative to this file) resolved: the base's mapping updated by this file's fields (a chain of at most
+    MAX_BASE_CHAIN files, without a cycle)."""
+    chain, layers = [path], []
+    while True:
+        values = _scenario_file(chain[-1], chain[-2] if len(chain) > 1 else None)
+        layers.append(values)
+        if values.get("base") is None:
+            values.pop("base", None)
+            break
+        base = _base_path(values.pop("base"), chain[-1])
+        if os.path.abspath(base) in {os.path.abspath(p) for p in chain}:
+            raise ValueError(f"base: {' -> '.join(str(p) for p in (*chain, base))} is a cycle")
+        if len(chain) >= MAX_BASE_CHAIN:
+            raise ValueError(f"base: a chain of more than {MAX_BASE_CHAIN} scenario files")
+        chain.append(base)
+    merged = layers.pop()
+    for values in reversed(layers):
+        merged.pop("description", None)
+        for key, value in values.items():
+            if key in _MERGED_MAPPINGS and isinstance(value, dict) and isinstance(merged.get(key), dict):
+                merged[key] = {**merged[key], **value}
+            else:
+                merged[key] = value
     return merged
 
 
 def load_scenario(path: str | Path, data_dir: str | Path | None = None) -> Scenario:
     """Read a scenario YAML file (``base: NAME`` derives it from another scenario: see the module docstring);
-    ValueError names the file and the field at fault."""
+    ValueError names the file and every field at fault (never the file's text)."""
     path = Path(path)
     try:
         return scenario_from_dict(_yaml_mapping(path), data_dir)
-    except (ValueError, yaml.YAMLError) as error:
-        raise ValueError(f"{path}: {error}") from None
+    except ValueError as error:  # YamlInputError too: a read, syntax or size refusal
+        text = str(error)
+        raise ValueError(text if text.startswith(f"{path}:") or text.startswith(f"{path} ") else f"{path}: {text}") from None
 
 
 def with_weather_of(task: Scenario, weather: Scenario) -> Scenario:

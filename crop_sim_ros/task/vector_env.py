@@ -38,7 +38,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..model import DailyFluxes
 from . import core
-from .env import NUMERIC_DTYPE_KINDS
+from .env import NUMERIC_DTYPE_KINDS, reset_options, season_indices, weather_option
 from .scenario import Scenario, get_scenario
 
 
@@ -92,7 +92,9 @@ class IrrigationVectorEnv(VectorEnv):
     scenario; ``{"terms": {"quota_mm": (N,), ...}}`` sets the first episode's drawn terms (any of
     ``yield_value_per_t``, ``water_cost_per_mm``, ``quota_mm``: paired comparisons on the same terms);
     ``{"weathers": [WeatherSeries] * N}`` grows field i in the given series (sown on its first
-    day). Later autoresets draw from the scenario's seasons again.
+    day). Later autoresets draw from the scenario's seasons again. Seasons are whole numbers (one index for
+    every field, or one per field), other option keys are refused. ``step(actions)``: one amount (mm) per field,
+    shape (N,) or (N, 1); any other shape is refused (never reshaped).
 
     ``noise_thread``: draw the observation noise a step ahead on a worker thread (default: when this
     process may run on more than one CPU, ``os.sched_getaffinity``); False draws it on the calling thread.
@@ -153,25 +155,27 @@ class IrrigationVectorEnv(VectorEnv):
         super().reset(seed=seed)
         self._noise_rng = PrefetchedNormal(int(self.np_random.integers(2**63)), self.num_envs,
                                            self.params.noise_columns, self.noise_thread)
-        options = dict(options or {})
-        weathers = options.pop("weathers", None)
-        season = options.pop("season", None)
-        terms = options.pop("terms", None)
-        if options:
-            raise ValueError(f"unknown reset options {sorted(options)}; known: weathers, season, terms")
+        options = reset_options(options, ("weathers", "season", "terms"))
+        weathers, season, terms = options.get("weathers"), options.get("season"), options.get("terms")
+        if weathers is not None and season is not None:
+            raise ValueError("reset options: give weathers or season, not both")
+        if terms is not None and not isinstance(terms, dict):
+            raise TypeError(f"terms: expected a dict of arrays by name, got {type(terms).__name__}")
         self._table = self.seasons
         if weathers is not None:
+            if not isinstance(weathers, (list, tuple)):
+                raise TypeError(f"weathers: expected a list of {self.num_envs} WeatherSeries, got "
+                                f"{type(weathers).__name__}")
             if len(weathers) != self.num_envs:
                 raise ValueError(f"weathers: {len(weathers)} series for {self.num_envs} fields")
-            given = core.season_table(self.scenario, [self.scenario.prepare(w) for w in weathers])
+            given = core.season_table(self.scenario, [self.scenario.prepare(weather_option(w, "weathers[]"))
+                                                      for w in weathers])
             self._table = core.stack_tables([self.seasons, given])
             season = len(self.seasons) + np.arange(self.num_envs)
         elif season is None:
             season = self._draw_seasons(self.num_envs)
         else:
-            season = np.broadcast_to(np.asarray(season, dtype=np.int64), (self.num_envs,))
-            if season.min() < 0 or season.max() >= len(self.seasons):
-                raise ValueError(f"season: indices must be in 0..{len(self.seasons) - 1}")
+            season = season_indices(season, len(self.seasons), (self.num_envs,))
         self._state = core.initial(self.params, season, self.np_random)
         if terms is not None:
             self._state = self._state._replace(terms=core.given_terms(self._state.terms, terms))
@@ -186,10 +190,10 @@ class IrrigationVectorEnv(VectorEnv):
         given = np.asarray(actions)
         if given.dtype.kind not in NUMERIC_DTYPE_KINDS:  # float() would take strings, bools, Decimal objects
             raise TypeError(f"actions must be numbers of mm (int or float), got an array of dtype {given.dtype}")
+        if given.shape not in ((self.num_envs,), (self.num_envs, 1)):  # (2, 4) for 8 fields is a mistake
+            raise ValueError(f"actions must hold one irrigation amount per field: shape ({self.num_envs},) or "
+                             f"({self.num_envs}, 1), got {given.shape}")
         requested = given.astype(np.float64).reshape(-1)
-        if requested.shape != (self.num_envs,):
-            raise ValueError(f"actions must hold one irrigation amount per field ({self.num_envs}), "
-                             f"got shape {np.shape(actions)}")
         if not (np.isfinite(requested.min()) and np.isfinite(requested.max())):  # NaN propagates to both
             raise ValueError(f"irrigation must be finite mm, got a non-finite value for fields "
                              f"{np.flatnonzero(~np.isfinite(requested))[:10].tolist()}")

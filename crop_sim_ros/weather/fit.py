@@ -324,12 +324,15 @@ def comparison_table(observed: dict[str, np.ndarray], generated: dict[str, np.nd
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..task.scenario import MAX_GENERATED_SEASONS
+    from ..usage import UsageError, check_range, one_line
+    check_range("--check-seasons", args.check_seasons, 1, MAX_GENERATED_SEASONS)  # before anything is written
+    check_range("--seed", args.seed, 0, 2**32 - 1)
     try:
         observed = load_observed(args.data, *observed_files(args.agweathernet, args.dssat))
         params = fit_parameters(observed, args.name)
-    except WeatherError as error:
-        print(f"fit-weather: {error}")
-        return 1
+    except WeatherError as error:  # the files given (or their absence): the user's
+        raise UsageError(one_line(error)) from None
     out = args.out or BENTON_PARAMETERS_FILE.with_name(args.name + PARAMETERS_SUFFIX)
     params.to_json(out)
     print(f"wrote {out} (fitted from {', '.join(s.source for s in observed)} under {args.data})")

@@ -1,0 +1,189 @@
+"""The paced rule (crop_agent_ros/policies/paced_rule.py): what it reads, the limits it keeps, its tuned file and
+its tuner's refusals. Fast: a few seasons, no tuning run."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from crop_agent_ros.policies import family_tuning
+from crop_agent_ros.policies.base import SeasonContext
+from crop_agent_ros.policies.paced_rule import PacedFacts, PacedParameters, PacedRule
+from crop_agent_ros.policies.rollout import draw_terms, run_episodes
+from crop_sim_ros.task.layout import EXTENDED
+from crop_sim_ros.task.scenario import get_scenario
+
+TASK = "benton-quota"
+QUOTA = EXTENDED.index("quota_remaining_mm")
+CAPACITY = EXTENDED.index("capacity_mm_per_day")
+PAW = EXTENDED.index("paw_mm")
+
+
+class Recorder:
+    """Wraps a policy: keeps every observation batch it was shown and every action it gave."""
+
+    def __init__(self, policy):
+        self.policy, self.name = policy, policy.name
+        self.observations, self.actions = [], []
+
+    def reset(self, seed=None):
+        self.policy.reset(seed)
+
+    def act(self, obs):
+        action = np.asarray(self.policy.act(obs), dtype=float)
+        self.observations.append(np.array(obs, dtype=float))
+        self.actions.append(action.copy())
+        return action
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return get_scenario(TASK)
+
+
+@pytest.fixture(scope="module")
+def shipped(scenario):
+    return family_tuning.tuned_rule(TASK, "paced-rule")
+
+
+@pytest.fixture(scope="module")
+def recorded(scenario, shipped):
+    """The shipped paced rule on 6 training seasons with tight quotas (the quota binds)."""
+    seasons = np.arange(6)
+    terms = draw_terms(scenario, seasons, 0)
+    terms["quota_mm"] = np.linspace(150.0, 300.0, len(seasons))
+    recorder = Recorder(shipped)
+    episodes = run_episodes(recorder, scenario, seasons, seed=3, terms=terms)
+    return recorder, episodes, terms
+
+
+def test_facts_are_the_published_parameters_and_the_sensor_error(scenario):
+    facts = PacedFacts.of_scenario(scenario)
+    assert (facts.capacity_mm, facts.tsum_degc_d, facts.i50a_degc_d, facts.i50b_degc_d) == (120.0, 2300.0, 500.0, 400.0)
+    assert (facts.i50_max_water_degc_d, facts.i50_max_heat_degc_d, facts.water_stress_sensitivity) == (30.0, 50.0, 0.4)
+    assert facts.sensor_sd_mm == scenario.noise.paw_mm == 1.0
+    assert PacedFacts.of_scenario(get_scenario("benton-sensing")).sensor_sd_mm == 10.0
+
+
+def test_reads_only_the_observation(recorded, shipped):
+    """Replaying the recorded observations into a fresh rule, told a false season (other weather, other terms)
+    before it starts, gives the same actions: nothing but the observation enters."""
+    recorder, _, _ = recorded
+    fresh = family_tuning.tuned_rule(TASK, "paced-rule")
+    fresh.reset(123)
+    lie = SeasonContext(name="not this season", params=None, tmax_degc=np.full(200, 45.0), tmin_degc=np.zeros(200),
+                        srad_mj_m2=np.ones(200), rain_mm=np.full(200, 50.0), et0_mm=np.ones(200),
+                        extra={"terms": {"quota_mm": 1e6}})
+    fresh.begin_season([lie] * len(recorder.observations[0]))
+    for obs, action in zip(recorder.observations, recorder.actions):
+        assert np.array_equal(fresh.act(obs), action)
+    # ... and the observation does enter: a drier reading asks for more water on some day
+    fresh.reset()
+    drier = []
+    for obs in recorder.observations:
+        changed = obs.copy()
+        changed[:, PAW] = np.maximum(changed[:, PAW] - 30.0, 0.0)
+        drier.append(fresh.act(changed))
+    assert sum(a.sum() for a in drier) > sum(a.sum() for a in recorder.actions)
+
+
+def test_keeps_the_quota_and_the_capacity(recorded):
+    recorder, episodes, terms = recorded
+    for obs, action in zip(recorder.observations, recorder.actions):
+        assert np.all(action >= 0.0)
+        assert np.all(action <= obs[:, QUOTA] + 1e-9) and np.all(action <= obs[:, CAPACITY] + 1e-9)
+    assert np.all(episodes.water_mm <= terms["quota_mm"] + 1e-6)
+    assert np.all(episodes.water_mm > 0.5 * terms["quota_mm"])  # and it does spend a tight quota
+
+
+def test_deterministic(scenario, shipped, recorded):
+    _, episodes, terms = recorded
+    again = run_episodes(shipped, scenario, np.arange(6), seed=3, terms=terms)
+    assert np.array_equal(again.episode_return, episodes.episode_return)
+    # one field alone acts as it does in a batch
+    recorder, _, _ = recorded
+    single = family_tuning.tuned_rule(TASK, "paced-rule")
+    single.reset()
+    for obs, action in zip(recorder.observations[:40], recorder.actions[:40]):
+        assert single.act(obs[2]) == pytest.approx(action[2], abs=1e-12)
+
+
+def test_batched_parameters_match_one_by_one(scenario, recorded):
+    """The tuner's batched candidates (one parameter value per field) act as each candidate alone."""
+    recorder, _, _ = recorded
+    facts = PacedFacts.of_scenario(scenario)
+    n = recorder.observations[0].shape[0]
+    candidates = {"pace": np.linspace(0.6, 2.5, n), "narrow_degc_d": np.linspace(0.0, 900.0, n),
+                  "senescence_weight": np.linspace(0.0, 2.0, n)}
+    batched = PacedRule(facts, candidates)
+    alone = [PacedRule(facts, {k: v[i] for k, v in candidates.items()}) for i in range(n)]
+    for obs in recorder.observations:
+        together = batched.act(obs)
+        assert np.allclose(together, [rule.act(obs[i]) for i, rule in enumerate(alone)], atol=1e-12)
+
+
+def test_tuned_file_loads_and_records_its_training(shipped):
+    record = json.loads(family_tuning.family_file(TASK, "paced-rule").read_text())
+    assert record["rule"] == "paced-rule" and record["scenario"] == TASK
+    assert record["seasons"] == list(range(150))  # generated training seasons 0..149 only
+    assert set(record["parameters"]) == set(PacedParameters.names())
+    assert shipped.name == "paced-rule" and shipped.facts == PacedFacts.from_record(record["facts"])
+
+
+@pytest.mark.parametrize("change", [
+    lambda r: r["parameters"].pop("pace"),
+    lambda r: r["parameters"].update(pace="fast"),
+    lambda r: r["parameters"].update(extra=1.0),
+    lambda r: r["facts"].pop("sensor_sd_mm"),
+    lambda r: r.update(parameters=[1, 2]),
+])
+def test_malformed_file_is_refused_in_one_line(change, tmp_path, monkeypatch):
+    record = json.loads(family_tuning.family_file(TASK, "paced-rule").read_text())
+    change(record)
+    monkeypatch.setattr(family_tuning, "HERE", tmp_path)
+    (tmp_path / f"family_{TASK}-paced.json").write_text(json.dumps(record))
+    with pytest.raises(ValueError) as error:
+        family_tuning.tuned_rule(TASK, "paced-rule")
+    text = str(error.value)
+    assert "\n" not in text and f"family_{TASK}-paced.json" in text and "paced-rule" in text
+    (tmp_path / f"family_{TASK}-paced.json").write_text("{not json")
+    with pytest.raises(ValueError, match="not a tuned paced-rule file"):
+        family_tuning.tuned_rule(TASK, "paced-rule")
+
+
+def test_missing_file_says_how_to_tune(tmp_path, monkeypatch):
+    monkeypatch.setattr(family_tuning, "HERE", tmp_path)
+    with pytest.raises(FileNotFoundError, match="--rule paced-rule"):
+        family_tuning.tuned_rule(TASK, "paced-rule")
+
+
+def test_unknown_parameter_is_refused():
+    with pytest.raises(ValueError, match="unknown paced rule parameters"):
+        PacedRule(PacedFacts.of_scenario(get_scenario(TASK)), {"speed": 1.0})
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--rule", "fancy-rule"], "crop-sim tune-rule: --rule: unknown rule 'fancy-rule'; known: budget-rule, paced-rule"),
+    (["--rule", "paced-rule", "--seasons", "5..1"], "crop-sim tune-rule: --seasons: '5..1' names no season"),
+    (["--rule", "paced-rule", "--candidates", "0"], "crop-sim tune-rule: --candidates must be in 1..10000"),
+    (["--rule", "paced-rule", "--seed", "-1"], "crop-sim tune-rule: --seed"),
+])
+def test_tuner_refuses_bad_input_in_one_line(arguments, message, capsys):
+    from crop_agent_ros.cli import main
+    assert main(["tune-rule", "--task", TASK, *arguments]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(message), err
+
+
+def test_tuner_writes_a_loadable_paced_file(tmp_path, monkeypatch, scenario):
+    """A tiny tuning run (2 seasons, 3 candidates, 1 round) writes family_<task>-paced.json that loads."""
+    monkeypatch.setattr(family_tuning, "HERE", tmp_path)
+    result = family_tuning.tune_rule(scenario, np.arange(2), candidates=3, rounds=1, rule="paced-rule",
+                                     log=lambda message: None)
+    path = family_tuning.write_tuned(TASK, result, "paced-rule")
+    assert path == tmp_path / f"family_{TASK}-paced.json"
+    rule = family_tuning.tuned_rule(TASK, "paced-rule")
+    assert isinstance(rule, PacedRule) and set(rule.parameters) == set(PacedParameters.names())
+    assert not (tmp_path / f"family_{TASK}.json").exists()  # the budget rule's file is another file
