@@ -187,3 +187,11 @@ def test_tuner_writes_a_loadable_paced_file(tmp_path, monkeypatch, scenario):
     rule = family_tuning.tuned_rule(TASK, "paced-rule")
     assert isinstance(rule, PacedRule) and set(rule.parameters) == set(PacedParameters.names())
     assert not (tmp_path / f"family_{TASK}.json").exists()  # the budget rule's file is another file
+
+
+def test_registry_builds_it_by_name():
+    from crop_agent_ros.policies.registry import NODE_POLICIES, PolicyArguments, build_policy
+    assert "paced-rule" in NODE_POLICIES
+    assert isinstance(build_policy("paced-rule", PolicyArguments(task=TASK)), PacedRule)
+    with pytest.raises(ValueError, match="paced-rule needs a family task"):
+        build_policy("paced-rule")

@@ -12,6 +12,7 @@ name            what it is                                                      
 ``ppo``         a paper-task Stable-Baselines3 PPO policy file (default: the shipped) ``policy_file``      yes
 ``oracle``      the hindsight oracle (knows the season's weather: evaluation only)    -                    no
 ``budget-rule`` the water-budget rule tuned for a family task                         ``task``             yes
+``paced-rule``  the paced rule tuned for a family task (issue 33)                     ``task``             yes
 ``es``          the shipped evolution-strategies agent of a family task               ``task``             yes
 ``agent``       a family agent trained by ``crop-sim train --task``                   ``policy_file``,     yes
                                                                                       ``climate``
@@ -83,6 +84,13 @@ def _budget_rule(arguments: PolicyArguments) -> BasePolicy:
     return tuned_rule(arguments.task)
 
 
+def _paced_rule(arguments: PolicyArguments) -> BasePolicy:
+    if not arguments.task:
+        raise ValueError("policy paced-rule needs a family task (task:=, --task)")
+    from .family_tuning import tuned_rule
+    return tuned_rule(arguments.task, "paced-rule")
+
+
 def _agent(arguments: PolicyArguments) -> BasePolicy:
     if not arguments.policy_file:
         raise ValueError("policy agent needs policy_file:=<model.zip of a family agent>")
@@ -146,6 +154,7 @@ POLICY_KINDS: dict[str, PolicyKind] = {kind.name: kind for kind in (
     PolicyKind("ppo", "a paper-task PPO policy file (default: the shipped one)", _ppo),
     PolicyKind("oracle", "the hindsight oracle (evaluation only)", _oracle, node=False),
     PolicyKind("budget-rule", "the water-budget rule tuned for a family task", _budget_rule, reads_task=True),
+    PolicyKind("paced-rule", "the paced rule tuned for a family task", _paced_rule, reads_task=True),
     PolicyKind("es", "the shipped evolution-strategies agent of a family task", _es, reads_task=True),
     PolicyKind("agent", "a family agent's policy file", _agent),
 )}
