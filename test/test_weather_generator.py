@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from crop_sim_ros.usage import UsageError
 from crop_sim_ros.weather.fit import add_arguments, fit_parameters, load_observed, monthly_statistics, run
 from crop_sim_ros.weather.generator import (BENTON_PARAMETERS_FILE, GeneratorParameters, benton_parameters,
                                             clear_sky_radiation_mj_m2, conditional_field_names, generate_season,
@@ -279,7 +280,9 @@ def test_fit_weather_command_writes_the_parameters_and_prints_the_table(tmp_path
     printed = capsys.readouterr().out
     assert "wind: Jan from Apr" in printed
     assert "Jul " in printed and "obs / gen" in printed
-    assert run(parser.parse_args(["--data", str(tmp_path), "--out", str(tmp_path / "x.json")])) == 1
+    with pytest.raises(UsageError, match="benton_e_2000-04-01_2000-09-30.csv: cannot read"):  # one line, exit 2
+        run(parser.parse_args(["--data", str(tmp_path), "--out", str(tmp_path / "x.json")]))
+    assert not (tmp_path / "x.json").exists()
 
 
 def test_changing_a_parameter_changes_the_weather():

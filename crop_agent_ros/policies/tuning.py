@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import time
 from pathlib import Path
 
 import numpy as np
+
+from crop_sim_ros.output import write_json_atomic
 
 from .rules import BEST_CONSTANT_FILE, REFILL_FILE, ConstantPolicy, DemandMarginPolicy, RefillPolicy
 from .rollout import run_episodes, scenario_of
@@ -105,14 +106,14 @@ def main(argv=None) -> int:
               "score": "mean return (yield t/ha + C_I * irrigation mm) over the tuning seasons"}
     t = time.perf_counter()
     constant = tune_constant(scenario, seasons, args.seed)
-    (args.out_dir / BEST_CONSTANT_FILE.name).write_text(json.dumps({**common, **constant}, indent=2) + "\n")
+    write_json_atomic(args.out_dir / BEST_CONSTANT_FILE.name, {**common, **constant}, indent=2)
     print(f"best constant: {constant['mm_per_day']} mm/day, mean return {constant['mean_return']:.4f}")
     refill = tune_refill(scenario, seasons, args.seed)
-    (args.out_dir / REFILL_FILE.name).write_text(json.dumps({**common, **refill}, indent=2) + "\n")
+    write_json_atomic(args.out_dir / REFILL_FILE.name, {**common, **refill}, indent=2)
     print(f"refill: {refill['parameters']}, mean return {refill['mean_return']:.4f} "
           f"({refill['grid_size']} grid points, {time.perf_counter() - t:.0f} s)")
     margin = tune_margin(scenario, seasons, args.seed)
-    (args.out_dir / MARGIN_FILE.name).write_text(json.dumps({**common, **margin}, indent=2) + "\n")
+    write_json_atomic(args.out_dir / MARGIN_FILE.name, {**common, **margin}, indent=2)
     print(f"demand margin: {margin['margin_mm']} mm, mean return {margin['mean_return']:.4f}")
     return 0
 

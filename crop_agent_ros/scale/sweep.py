@@ -77,7 +77,7 @@ from pathlib import Path
 from typing import Annotated, ClassVar, Union
 
 import numpy as np
-from pydantic import (AfterValidator, BaseModel, ConfigDict, Discriminator, Field, PlainValidator, StringConstraints,
+from pydantic import (BaseModel, ConfigDict, Discriminator, Field, PlainValidator, StringConstraints,
                       Tag, ValidationError, field_validator, model_validator)
 from pydantic_core import PydanticCustomError
 

@@ -10,12 +10,11 @@ Table 3, writes the JSON summary and the daily simulated series (one CSV row per
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import math
 import sys
 from pathlib import Path
 
+from ..output import write_csv_atomic, write_json_atomic
 from ..model.parameters import PARAMETER_SOURCES, UnknownNameError
 from ..weather.series import WeatherError
 from .inputs import IRRIGATION_ROWS, InputError, read_observations, read_treatments
@@ -44,14 +43,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def write_series_csv(path: Path, runs: list[TreatmentRun]) -> None:
     """One row per treatment and simulated day, columns :data:`CSV_COLUMNS`."""
-    with path.open("w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(CSV_COLUMNS)
-        for run in runs:
-            t = run.treatment
-            for day, when in enumerate(run.dates):
-                writer.writerow([t.experiment, t.number, t.crop, run.cultivar, str(when), day,
-                                 *(f"{float(run.series[name][day]):.6g}" for name in SERIES_COLUMNS)])
+    write_csv_atomic(path, CSV_COLUMNS, (
+        [run.treatment.experiment, run.treatment.number, run.treatment.crop, run.cultivar, str(when), day,
+         *(f"{float(run.series[name][day]):.6g}" for name in SERIES_COLUMNS)]
+        for run in runs for day, when in enumerate(run.dates)))
 
 
 def _format(entry: dict) -> str:
@@ -109,6 +104,6 @@ def run(args: argparse.Namespace) -> int:
         "skipped_observations": len(comparison.skipped),
         "date_mismatches": comparison.date_mismatches,
     }
-    args.summary_json.write_text(json.dumps(summary, indent=2) + "\n")
+    write_json_atomic(args.summary_json, summary, indent=2)
     print(f"wrote {args.out} and {args.summary_json}")
     return 0

@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 from refet.calcs import ra_daily, rso_simple
 
+from ..output import write_text_atomic
 from .series import Site, WeatherError, WeatherSeries, make_series, saturation_vapour_pressure_hpa
 
 MONTHS = 12
@@ -201,7 +202,7 @@ class GeneratorParameters:
 
     def to_json(self, path: str | Path) -> None:
         """Write the parameters (and metadata) as JSON."""
-        Path(path).write_text(json.dumps(asdict(self), indent=1) + "\n", encoding="utf-8")
+        write_text_atomic(path, json.dumps(asdict(self), indent=1) + "\n")
 
     @classmethod
     def from_json(cls, path: str | Path) -> "GeneratorParameters":
