@@ -207,7 +207,8 @@ def test_a_base_that_is_not_a_scenario_is_not_quoted_to_a_sim_node_peer(tmp_path
 def test_a_base_chain_is_at_most_32_files_and_never_a_cycle(tmp_path, capsys):
     for i in range(1200):
         (tmp_path / f"s{i}.yaml").write_text(f"base: s{i + 1}.yaml\n" if i < 1199 else GOOD)
-    refused(simulate(tmp_path / "s0.yaml", tmp_path), capsys, f"base: a chain of more than {MAX_BASE_CHAIN} scenario files")
+    refused(simulate(tmp_path / "s0.yaml", tmp_path), capsys,
+            f"base: a chain of more than {MAX_BASE_CHAIN} scenario files")
     (tmp_path / "s1199.yaml").write_text(GOOD)
     (tmp_path / "s30.yaml").write_text("base: s0.yaml\n")  # 31 files, a cycle
     refused(simulate(tmp_path / "s0.yaml", tmp_path), capsys, "is a cycle")
@@ -233,7 +234,8 @@ SCHEMA_CASES = {
                               "site.latitude_deg: 91 is not a finite number in [-90, 90]"),
     "crop a number": ("crop: 5\n", "crop: expected text"),
     "unknown field": ("colour: green\n", "colour: unknown field (known: co2_ppm, crop"),
-    "unknown kind": ("weather: {kind: magic}\n", "weather.kind: 'magic' is not one of generator, file, seasons, mixture"),
+    "unknown kind": ("weather: {kind: magic}\n",
+                     "weather.kind: 'magic' is not one of generator, file, seasons, mixture"),
 }
 
 

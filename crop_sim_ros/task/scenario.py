@@ -89,8 +89,8 @@ from ..safe_yaml import read_yaml
 from ..weather import GENERATOR_NAMES, Site, WeatherError, WeatherSeries, read_agweathernet_csv, read_dssat_wth
 from ..weather.csv_readers import read_plain_csv
 from ..weather.generator import (MAX_DELTA_DEGC, MAX_RADIATION_FACTOR, MAX_RAIN_FACTOR, MAX_SOWING_DELAY_DAYS,
-                                 MIN_RADIATION_FACTOR, MIN_RAIN_FACTOR, ClimateSpread, climate_name, climate_parameters, generate_seasons,
-                                 generate_spread_seasons)
+                                 MIN_RADIATION_FACTOR, MIN_RAIN_FACTOR, ClimateSpread, climate_name,
+                                 climate_parameters, generate_seasons, generate_spread_seasons)
 from .layout import EXTENDED, PAPER, ObservationLayout
 from .schema import Rules, shown, validated
 from .terms import (MAX_EVENT_COST_USD, MAX_NOMINAL_SEASON_DAYS, MAX_PRICE_USD_PER_T, MAX_QUOTA_MM,
@@ -287,10 +287,6 @@ class WeatherSource:
                              "source names it); the source has no one climate")
         return climate_name(self.generator, self.warming_degc, self.drying_degc, self.rain_factor,
                             self.radiation_factor, self.diurnal_range_degc)
-
-
-# What a weather mapping may name besides its seasons (a file source's path and format become its one season).
-SOURCE_FIELDS = frozenset(f.name for f in fields(WeatherSource)) - {"seasons"}
 
 
 @dataclass(frozen=True)
@@ -587,7 +583,7 @@ def load_scenario(path: str | Path, data_dir: str | Path | None = None) -> Scena
         return scenario_from_dict(_yaml_mapping(path), data_dir)
     except ValueError as error:  # YamlInputError too: a read, syntax or size refusal
         text = str(error)
-        raise ValueError(text if text.startswith(f"{path}:") or text.startswith(f"{path} ") else f"{path}: {text}") from None
+        raise ValueError(text if text.startswith((f"{path}:", f"{path} ")) else f"{path}: {text}") from None
 
 
 def with_weather_of(task: Scenario, weather: Scenario) -> Scenario:
