@@ -169,6 +169,8 @@ def loads(text: str, source: str, *, aliases: bool = False) -> Any:
         raise _syntax_error(source, error) from None
     except RecursionError:  # pragma: no cover - MAX_DEPTH keeps the recursion far below the limit
         raise YamlInputError(f"{source}: nested too deep") from None
+    except ValueError:  # Python's int() refuses integers of more than 4,300 digits
+        raise YamlInputError(f"{source}: a number too long to read") from None
     finally:
         loader.dispose()
 

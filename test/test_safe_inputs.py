@@ -309,3 +309,13 @@ def test_every_built_in_scenario_loads_to_the_same_values_as_before_the_schema(s
         new_scenario = get_scenario(name, shared_data)
         old_scenario = old.load_scenario(SCENARIO_DIR / f"{name}.yaml", shared_data)
         assert repr(dataclasses.asdict(new_scenario)) == repr(dataclasses.asdict(old_scenario)), name
+
+
+def test_a_number_too_long_for_python_is_refused_in_one_line(capsys):
+    digits = "9" * 5000  # past Python's 4,300-digit limit of int()
+    with pytest.raises(YamlInputError, match=r"^--hyperparams timesteps: a number too long to read$"):
+        loads(digits, "--hyperparams timesteps")
+    assert main(["train", "--task", "benton-quota", "--algorithm", "ppo", "--show",
+                 "--hyperparams", f"timesteps={digits}"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("crop-sim train: ") and digits not in err
