@@ -6,7 +6,10 @@ messages and back. Only standard interfaces are used (std_msgs, std_srvs, rosgra
 diagnostic_msgs), so stock ``ros2 topic echo`` shows every topic.
 
 Names are relative to the simulator node (``~/...``, default node name ``crop_sim``), so
-``-r __ns:=/field7`` or ``-r __node:=...`` runs several farms side by side. ``/clock`` is global.
+``-r __ns:=/field7`` or ``-r __node:=...`` runs several farms side by side. Two names are global: ``/clock``
+(the ROS time source: farms side by side each publish their own with ``-p clock_topic:=clock``, i.e.
+``/field7/clock``, or none with ``-p clock_topic:=''``) and ``/diagnostics`` (each node's status is named after
+the node, so farms side by side share it as every ROS node does).
 
 ==================================== ============================== ==========================================
 Name                                 Type                           Content
@@ -31,7 +34,7 @@ Name                                 Type                           Content
                                                                     terminated, truncated, yield t/ha,
                                                                     return, command sequence]; reward and
                                                                     return in the scenario's unit
-``/clock``                           rosgraph_msgs/Clock            farm time: sowing date 00:00 UTC + day
+``/clock`` (parameter clock_topic)   rosgraph_msgs/Clock            farm time: sowing date 00:00 UTC + day
 ``~/irrigation`` (subscribed)        std_msgs/Float64MultiArray     command [day, mm] or [day, mm, episode]
 ``~/irrigation_step`` (subscribed)   std_msgs/Float64MultiArray     the same command, and step at once
                                                                     (lockstep): one round trip per day
@@ -39,10 +42,13 @@ Name                                 Type                           Content
                                                                     (accepted) or ERROR (rejected, why);
                                                                     WARN after a step whose command the
                                                                     capacity or the quota cut
-``~/status``                         diagnostic_msgs/DiagnosticStatus  the node's state and counters: days
-                                                                    without a command, commands received /
-                                                                    accepted / rejected, season-log rows
-                                                                    written / lost (level WARN, ERROR)
+``/diagnostics``                     diagnostic_msgs/DiagnosticArray   the node's status (one DiagnosticStatus
+                                                                    named ``<node>: farm``): days without a
+                                                                    command, commands received / accepted /
+                                                                    rejected, season-log rows written / lost
+                                                                    (level WARN, ERROR); every second and at
+                                                                    once on a change (rqt_robot_monitor and
+                                                                    the diagnostic aggregator read it)
 ==================================== ============================== ==========================================
 
 ``day`` is the number of days since sowing of the state the message describes (0 after a reset); the
@@ -66,10 +72,10 @@ quota (mm; +inf = none) and the most the system applies in a day (mm/d; the acti
 A paper-task scenario has no money terms: price, water cost and event cost are NaN there.
 
 QoS (explicit, see the constants below): the state topics (observation, farm_terms, biomass, paw, weather,
-step_result, status) are reliable + transient_local with depth 1, so a subscriber that joins late still
-gets the latest day. ``/clock`` has the QoS of ROS time sources (best effort, volatile, depth 1: what rclpy's
-and rclcpp's ``use_sim_time`` subscribe with), so a node that starts later reads farm time from the next
-step on. Commands and their status are reliable + volatile (a command is for one day; a late-joining
+step_result) and /diagnostics are reliable + transient_local with depth 1, so a subscriber that joins late
+still gets the latest day (a volatile reader, as the diagnostic aggregator's, matches too). ``/clock`` has
+the QoS of ROS time sources (best effort, volatile, depth 1: what rclpy's and rclcpp's ``use_sim_time``
+subscribe with), so a node that starts later reads farm time from the next step on. Commands and their status are reliable + volatile (a command is for one day; a late-joining
 simulator must not apply an old one); the simulator's command subscriptions keep all messages, so a burst
 is queued, never overwritten; clients publish with depth 10 (or keep-all for bursts of their own).
 """
@@ -82,7 +88,7 @@ from datetime import date, datetime, timezone
 from typing import Generic, NamedTuple, TypeVar, get_type_hints
 
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float32MultiArray, Float64MultiArray, MultiArrayDimension
@@ -103,8 +109,8 @@ FARM_TERMS_TOPIC = "farm_terms"
 IRRIGATION_TOPIC = "irrigation"
 IRRIGATION_STEP_TOPIC = "irrigation_step"
 IRRIGATION_STATUS_TOPIC = "irrigation_status"
-STATUS_TOPIC = "status"
-CLOCK_TOPIC = "/clock"
+DIAGNOSTICS_TOPIC = "/diagnostics"
+CLOCK_TOPIC = "/clock"  # the default of the clock_topic parameter
 
 # State topics: the latest day survives for late subscribers.
 STATE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
@@ -134,6 +140,10 @@ CLOCK_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=Rel
 # replay of a previous season's last day), a queue deep enough for a burst.
 READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=50, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
+# /diagnostics: the node's status, latched like the state topics (a late monitor gets it at once); the volatile
+# readers of diagnostic_aggregator and rqt_robot_monitor match it too.
+DIAGNOSTICS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # A late joiner that wants the latest day at once (monitoring, tests).
 LATCHED_READER_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.RELIABLE,
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -266,8 +276,9 @@ WEATHER_FORECAST = ArrayCodec(WeatherForecast, ("for_day[d]",) + OBSERVATION_LAB
 
 
 STATUS_NAME = "crop_sim/irrigation"
-NODE_STATUS_NAME = "crop_sim/status"
-# ~/status values: counters are whole numbers, season_ended is "true"/"false", the others are text.
+# The node's status on /diagnostics is named "<fully qualified node name without the leading />: farm".
+NODE_STATUS_SUFFIX = ": farm"
+# The node's status values: counters are whole numbers, season_ended is "true"/"false", the others are text.
 NODE_STATUS_COUNTERS = ("episode", "day", "days_without_command", "commands_received", "commands_accepted",
                         "commands_rejected", "log_rows_written", "log_rows_lost")
 NODE_STATUS_KEYS = NODE_STATUS_COUNTERS + ("mode", "season_ended", "log_path", "log_error")
@@ -373,17 +384,38 @@ def summary_json(summary: dict) -> str:
     return json.dumps({k: clean(v) for k, v in summary.items()}, separators=(",", ":"))
 
 
-def node_status_message(level: bytes, text: str, values: dict) -> DiagnosticStatus:
-    """The node's ~/status: ``level`` one of DiagnosticStatus.OK / WARN / ERROR, ``values`` every key of
-    NODE_STATUS_KEYS (counters as whole numbers, season_ended as a bool)."""
+def node_status_name(node_name: str) -> str:
+    """The name of the status of the simulator whose fully qualified name is ``node_name`` on /diagnostics:
+    ``/crop_sim`` -> ``crop_sim: farm``, ``/field7/crop_sim`` -> ``field7/crop_sim: farm``."""
+    return node_name.lstrip("/") + NODE_STATUS_SUFFIX
+
+
+def node_status_message(level: bytes, text: str, values: dict, name: str = node_status_name("/" + NODE_NAME)
+                        ) -> DiagnosticStatus:
+    """The node's status: ``level`` one of DiagnosticStatus.OK / WARN / ERROR, ``values`` every key of
+    NODE_STATUS_KEYS (counters as whole numbers, season_ended as a bool), ``name`` :func:`node_status_name`."""
     def text_of(value):
         return ("true" if value else "false") if isinstance(value, bool) else str(value)
-    return DiagnosticStatus(level=level, name=NODE_STATUS_NAME, message=text, hardware_id="",
+    return DiagnosticStatus(level=level, name=name, message=text, hardware_id="",
                             values=[KeyValue(key=key, value=text_of(values[key])) for key in NODE_STATUS_KEYS])
 
 
+def diagnostics_message(stamp: Time, statuses: list[DiagnosticStatus]) -> DiagnosticArray:
+    """What goes on /diagnostics: ``statuses`` stamped ``stamp`` (the node's clock: farm time under use_sim_time)."""
+    message = DiagnosticArray(status=statuses)
+    message.header.stamp = stamp
+    return message
+
+
+def node_statuses(message: DiagnosticArray, node_name: str) -> list[dict]:
+    """The statuses of the simulator ``node_name`` (fully qualified) in a /diagnostics message, as
+    :func:`node_status_values` reads them (other nodes' statuses are left out)."""
+    name = node_status_name(node_name)
+    return [node_status_values(status) for status in message.status if status.name == name]
+
+
 def node_status_values(message: DiagnosticStatus) -> dict:
-    """~/status -> {"level": 0 OK / 1 WARN / 2 ERROR, "message", and every key of NODE_STATUS_KEYS}."""
+    """The node's status -> {"level": 0 OK / 1 WARN / 2 ERROR, "message", and every key of NODE_STATUS_KEYS}."""
     values = {kv.key: kv.value for kv in message.values}
     out = {"level": message.level[0] if isinstance(message.level, bytes) else int(message.level),
            "message": message.message, **{key: values.get(key, "") for key in NODE_STATUS_KEYS}}

@@ -19,7 +19,7 @@ Call                  What it does
                       stays as it was
 ===================== ==================================================================================
 
-State (read by the node for its topics, log and ~/status):
+State (read by the node for its topics, log and its status on /diagnostics):
 
 ======================== ====== ==============================================================================
 Name                     Unit   Description

@@ -11,6 +11,7 @@ import os
 import re
 import socket
 import threading
+import warnings
 from collections import deque
 from dataclasses import dataclass, fields, replace
 from datetime import datetime, timedelta, timezone
@@ -18,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import rclpy.parameter
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
 from rclpy.node import Node
@@ -30,10 +31,10 @@ from . import ros_interface as ri
 from .safe_yaml import YamlInputError, read_yaml
 from .season_log import TERM_COLUMNS, SeasonLog, log_path_problem
 from .session import FarmSession
-from .sim_parameters import MODES, NODE_NAME, PARAMETERS, ParameterSpec
+from .sim_parameters import MODES, NODE_NAME, PARAMETERS, READ_ONLY_PARAMETERS, ParameterSpec
 from .task import IrrigationEnv, ObservationNoise, Scenario, get_scenario, load_scenario
 from .task.layout import PAPER, layout_of_size
-from .task.scenario import SCENARIO_FILE_KEYS
+from .task.scenario import DATA_DIR_ENV, SCENARIO_FILE_KEYS
 
 # Parameters that define the environment (a change rebuilds it at the next reset).
 ENV_PARAMETERS = ("scenario", "data_dir", "crop", "cultivar", "soil", "co2_ppm", "noise_scale",
@@ -42,7 +43,9 @@ ENV_PARAMETERS = ("scenario", "data_dir", "crop", "cultivar", "soil", "co2_ppm",
 RCLPY_PARAMETERS = ("use_sim_time", "start_type_description_service")
 REFUSAL_MAX_CHARS = 400
 _QUOTED = re.compile(r"'(?:[^'\\\n]|\\.)*'|\"(?:[^\"\\\n]|\\.)*\"")
-STATUS_PERIOD_S = 1.0  # ~/status: counters that changed are published at most this late
+STATUS_PERIOD_S = 1.0  # /diagnostics: the node's status is published this often (and at once on a change)
+# Where an installed package keeps the reference data (share/crop_sim_ros/<this>), found through the ament index.
+INSTALLED_DATA_SUBDIR = "data"
 
 
 class StartupError(RuntimeError):
@@ -60,11 +63,11 @@ def one_line(error: BaseException | str) -> str:
     return " ".join(text.split())
 
 
-def _descriptor(spec: ParameterSpec) -> ParameterDescriptor:
+def _descriptor(spec: ParameterSpec, read_only: bool = False) -> ParameterDescriptor:
     kind = {str: ParameterType.PARAMETER_STRING, int: ParameterType.PARAMETER_INTEGER,
             float: ParameterType.PARAMETER_DOUBLE}[type(spec.default)]
     descriptor = ParameterDescriptor(type=kind, description=spec.description,
-                                     additional_constraints=spec.constraints)
+                                     additional_constraints=spec.constraints, read_only=read_only)
     if spec.low is not None and kind == ParameterType.PARAMETER_DOUBLE:
         descriptor.floating_point_range = [FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high),
                                                               step=0.0)]
@@ -131,14 +134,18 @@ def scenario_error(config: EnvConfig, error: BaseException) -> str:
         path = str(Path(name).expanduser())
         text = str(error).removeprefix(f"{path}: ")  # load_scenario names the file first: once is enough
         return f"scenario file {path}: {without_file_values(f'{type(error).__name__}: {text}')}"
+    if isinstance(error, FileNotFoundError) and not config.data_dir:  # no reference data where the node looked
+        text = one_line(error).removeprefix(f"{type(error).__name__}: ").split(" (data directory ")[0]
+        return f"scenario {name!r}: {text} ({data_dir_hint()})"
     return f"scenario {name!r}: {one_line(error)}"
 
 
 def build_scenario(config: EnvConfig) -> Scenario:
     """The Scenario of ``config``: a built-in name or YAML path, with the overrides applied and the crop,
     cultivar and soil looked up (UnknownNameError, ValueError or FileNotFoundError on bad values; for a file that
-    is not a scenario YAML, ScenarioFileError first)."""
-    data_dir = config.data_dir or None
+    is not a scenario YAML, ScenarioFileError first). With no ``data_dir``: :func:`installed_data_dir`, else the
+    scenario's own default (``$CROP_SIM_DATA_DIR``, else the checkout's shared/data)."""
+    data_dir = config.data_dir or installed_data_dir()
     name = config.scenario.strip()
     if not name:
         raise ValueError("empty name")
@@ -165,9 +172,36 @@ def build_scenario(config: EnvConfig) -> Scenario:
     return scenario
 
 
-def default_log_path() -> Path:
+def installed_data_dir() -> Path | None:
+    """``share/crop_sim_ros/data`` of a package installed where the ament index finds it (``colcon build``,
+    ``AMENT_PREFIX_PATH``), if that directory exists; else None. The first place a node without ``data_dir``
+    looks; then ``$CROP_SIM_DATA_DIR``, then the checkout's ``../shared/data`` (the scenario's default)."""
+    try:
+        from ament_index_python.packages import get_package_share_directory  # noqa: PLC0415
+
+        with warnings.catch_warnings():  # it warns when the share directory does not exist: checked below
+            warnings.simplefilter("ignore")
+            share = Path(get_package_share_directory("crop_sim_ros")) / INSTALLED_DATA_SUBDIR
+    except Exception:  # noqa: BLE001 - no AMENT_PREFIX_PATH, or the package is not in the index
+        return None
+    return share if share.is_dir() else None
+
+
+def data_dir_hint() -> str:
+    """Where a node without ``data_dir`` looked for the reference data, and how to point it there (one line)."""
+    env = os.environ.get(DATA_DIR_ENV)
+    return (f"looked in share/crop_sim_ros/{INSTALLED_DATA_SUBDIR} of the ament index, then "
+            + (f"${DATA_DIR_ENV}={env}" if env else f"${DATA_DIR_ENV} (unset), then a shared/data above the current "
+                                                    "directory or the package")
+            + f"; set it with -p data_dir:=/path/to/shared/data or export {DATA_DIR_ENV}=/path/to/shared/data")
+
+
+def default_log_path(node_name: str = "/" + NODE_NAME) -> Path:
+    """The season log of the node whose fully qualified name is ``node_name``: $ROS_HOME/<namespace>/<node
+    name>/season_log.csv (``/crop_sim``: $ROS_HOME/crop_sim/season_log.csv; ``/field7/crop_sim``:
+    $ROS_HOME/field7/crop_sim/season_log.csv), so that farms side by side never share a log."""
     ros_home = os.environ.get("ROS_HOME") or os.path.join(os.path.expanduser("~"), ".ros")
-    return Path(ros_home) / "crop_sim" / "season_log.csv"
+    return Path(ros_home).joinpath(*node_name.strip("/").split("/")) / "season_log.csv"
 
 
 class SimNode(Node):
@@ -185,7 +219,7 @@ class SimNode(Node):
     def _setup(self) -> None:
         self._lock = threading.RLock()
         for name, spec in PARAMETERS.items():
-            self.declare_parameter(name, spec.default, _descriptor(spec))
+            self.declare_parameter(name, spec.default, _descriptor(spec, read_only=name in READ_ONLY_PARAMETERS))
         self._warn_unknown_parameters()
         values = self._values()
         problem = self._problem(values, set(PARAMETERS))
@@ -202,10 +236,9 @@ class SimNode(Node):
         self._log = self._open_log(self._log_path)
         self._run_id = f"{socket.gethostname()}-{os.getpid()}-{datetime.now(timezone.utc):%Y%m%dT%H%M%S}"
 
-        # the season log's counters of ~/status
+        # the season log's counters of the node's status (/diagnostics)
         self._log_rows_lost = 0
         self._log_error = ""  # why the last row could not be written; "" once a row is written again
-        self._status_changed = True
 
         # publishers (messages reused: publish() serialises at once)
         self._pub_obs = self.create_publisher(Float32MultiArray, "~/" + ri.OBSERVATION_TOPIC, ri.STATE_QOS)
@@ -215,10 +248,11 @@ class SimNode(Node):
         self._pub_forecast = self.create_publisher(Float64MultiArray, "~/" + ri.WEATHER_FORECAST_TOPIC, ri.STATE_QOS)
         self._pub_result = self.create_publisher(Float64MultiArray, "~/" + ri.STEP_RESULT_TOPIC, ri.STATE_QOS)
         self._pub_terms = self.create_publisher(Float64MultiArray, "~/" + ri.FARM_TERMS_TOPIC, ri.STATE_QOS)
-        self._pub_clock = self.create_publisher(Clock, ri.CLOCK_TOPIC, ri.CLOCK_QOS)
+        self._pub_clock = self._clock_publisher(self.get_parameter("clock_topic").value)
         self._pub_status = self.create_publisher(DiagnosticStatus, "~/" + ri.IRRIGATION_STATUS_TOPIC,
                                                  ri.COMMAND_STATUS_QOS)
-        self._pub_node_status = self.create_publisher(DiagnosticStatus, "~/" + ri.STATUS_TOPIC, ri.STATE_QOS)
+        self._pub_diagnostics = self.create_publisher(DiagnosticArray, ri.DIAGNOSTICS_TOPIC, ri.DIAGNOSTICS_QOS)
+        self._status_name = ri.node_status_name(self.get_fully_qualified_name())
         self._msg_obs = ri.observation_message(np.zeros(PAPER.size, np.float32))  # relabelled at each reset
         # Messages reused day after day (publishing serialises at once); the step result's labels follow the task.
         self._msg_biomass = ri.BIOMASS_READING.labelled()
@@ -263,7 +297,16 @@ class SimNode(Node):
 
     def _resolve_log_path(self, value: str | None = None) -> Path:
         value = self.get_parameter("log_path").value if value is None else value
-        return Path(value).expanduser() if value else default_log_path()
+        return Path(value).expanduser() if value else default_log_path(self.get_fully_qualified_name())
+
+    def _clock_publisher(self, topic: str):
+        """The farm-time publisher on ``topic`` (the ``clock_topic`` parameter), or None for ''."""
+        if not topic:
+            return None
+        try:
+            return self.create_publisher(Clock, topic, ri.CLOCK_QOS)
+        except Exception as error:  # noqa: BLE001 - an invalid topic name: a start-up configuration error
+            raise StartupError(f"clock_topic: {topic!r} is not a valid topic name ({one_line(error)})") from None
 
     def _warn_unknown_parameters(self) -> None:
         # rclpy keeps this node's -p / --params-file values in _parameter_overrides (there is no public
@@ -326,7 +369,6 @@ class SimNode(Node):
         """The session checks a command (an accepted one becomes the day's pending command); its fate goes to
         ~/irrigation_status and refusals to the log. Returns whether it was accepted."""
         outcome = self._session.command(values, and_step, lockstep=self._mode() == "lockstep")
-        self._status_changed = True
         if not outcome.accepted:
             where = "irrigation_step" if and_step else "irrigation"
             if outcome.timing:  # a command that came too late or too early: at most one log line a second
@@ -389,12 +431,11 @@ class SimNode(Node):
                                                            outcome.requested_mm, outcome.sequence, day + 1,
                                                            applied_mm=outcome.applied_mm))
             if outcome.sequence < 0:
-                self._status_changed = True
                 if free_running:  # in lockstep a step without a command is the caller's choice of 0 mm
                     self.get_logger().warning(
                         f"free running: day {day} of episode {session.episode} passed without a command (0 mm); "
                         f"{session.days_without_command} of {day + 1} days so far (logged at most once a second; "
-                        "counted on ~/status)", throttle_duration_sec=1.0)
+                        "counted on /diagnostics)", throttle_duration_sec=1.0)
             log_error = self._write_log_row(
                 {**self._log_common(day, outcome.obs_before),
                  "command_sequence": outcome.sequence, "irrigation_mm": outcome.applied_mm,
@@ -425,7 +466,7 @@ class SimNode(Node):
 
     def _write_log_row(self, row: dict, day: int) -> str | None:
         """Append the day's row to the season log; None, or why it could not be written (the day stands; the
-        caller is told, the failure is logged and counted on ~/status; the file keeps its last whole row)."""
+        caller is told, the failure is logged and counted on /diagnostics; the file keeps its last whole row)."""
         try:
             self._log.write(row)
         except OSError as error:
@@ -434,9 +475,8 @@ class SimNode(Node):
             self._log_error = (f"season log {self._log_path}: the row of episode {self._session.episode} day {day} "
                                f"was not written ({error.strerror or error}); {self._log_rows_lost} row"
                                f"{'s' if self._log_rows_lost > 1 else ''} lost so far")
-            self.get_logger().error(self._log_error + " (logged at most once a second; counted on ~/status)",
+            self.get_logger().error(self._log_error + " (logged at most once a second; counted on /diagnostics)",
                                     throttle_duration_sec=1.0)
-            self._status_changed = True
             if not failing_before:
                 self._publish_status()
             return self._log_error
@@ -555,15 +595,16 @@ class SimNode(Node):
         self._pub_today.publish(ri.WEATHER_TODAY.fill(self._msg_today, ri.WeatherToday(day, *wide[ri.OBS_TODAY])))
         self._pub_forecast.publish(ri.WEATHER_FORECAST.fill(self._msg_forecast,
                                                             ri.WeatherForecast(day + 1, *wide[ri.OBS_FORECAST])))
-        self._pub_clock.publish(ri.clock_message(sowing, day))
+        if self._pub_clock is not None:
+            self._pub_clock.publish(ri.clock_message(sowing, day))
 
     def _on_status_timer(self) -> None:
-        if self._status_changed:
-            with self._lock:
-                self._publish_status()
+        with self._lock:  # a heartbeat, as diagnostic_updater's: a monitor marks a silent node stale
+            self._publish_status()
 
     def _publish_status(self) -> None:
-        """~/status now: level ERROR while the season log cannot be written, WARN after rows were lost or when
+        """The node's status on /diagnostics now (one DiagnosticStatus named after the node, in a
+        DiagnosticArray): level ERROR while the season log cannot be written, WARN after rows were lost or when
         free-running days passed without a command this season, else OK."""
         free_running = self._mode() == "free_running"
         session = self._session
@@ -576,13 +617,13 @@ class SimNode(Node):
                                                   "season passed without a command")
         else:
             level, text = DiagnosticStatus.OK, "ok"
-        self._pub_node_status.publish(ri.node_status_message(level, text, {
+        status = ri.node_status_message(level, text, {
             "episode": session.episode, "day": session.day, "mode": self._mode(), "season_ended": session.ended,
             "days_without_command": session.days_without_command, "commands_received": session.commands_received,
             "commands_accepted": session.commands_accepted, "commands_rejected": session.commands_rejected,
             "log_path": self._log_path, "log_rows_written": self._log.rows_written,
-            "log_rows_lost": self._log_rows_lost, "log_error": self._log_error}))
-        self._status_changed = False
+            "log_rows_lost": self._log_rows_lost, "log_error": self._log_error}, name=self._status_name)
+        self._pub_diagnostics.publish(ri.diagnostics_message(self.get_clock().now().to_msg(), [status]))
 
     def destroy_node(self):
         self.finish()

@@ -23,12 +23,13 @@ publishes the new day. Each command is applied at most once and only to the day 
   accepted ones are reported too (level OK), so a client can wait for the acknowledgement before it calls
   ``~/step`` (the command topic and the step service are separate channels: without that wait a step
   could overtake the command);
-- a step with no accepted command for the day applies 0 mm (counted: ``days_without_command`` on
-  ``~/status``; in free-running mode such a day is also a warning in the node's log).
+- a step with no accepted command for the day applies 0 mm (counted: ``days_without_command`` in the node's
+  status on ``/diagnostics``; in free-running mode such a day is also a warning in the node's log).
 
 The command subscriptions keep every message (reliable, keep-all): a burst of commands is queued, not
-overwritten, however busy the node is. ``~/status`` counts the commands received, accepted and rejected, so
-a client can compare with what it sent (what a publisher with a shallow queue of its own drops never arrives).
+overwritten, however busy the node is. The node's status on ``/diagnostics`` counts the commands received,
+accepted and rejected, so a client can compare with what it sent (what a publisher with a shallow queue of its
+own drops never arrives).
 
 A client that drives the season can do both in one message: a command on ``~/irrigation_step`` is validated
 the same way and, if accepted, the day is stepped at once (one topic round trip per day; the outcome is on
@@ -58,7 +59,20 @@ state change is also taken under one lock, so a command and a step never interle
 observation and ``~/step_result`` are published at once; the other topics (biomass, PAW, weather, /clock)
 right after the callback has returned (so the caller waiting for the step waits less), always in day order.
 ``/clock`` uses the QoS of ROS time sources (best effort, volatile, depth 1): a node started with
-``use_sim_time`` reads farm time from the first step after it started (0 until then).
+``use_sim_time`` reads farm time from the first step after it started (0 until then). Farms side by side
+(``-r __ns:=/field7``, ``/field8``) each publish their own clock with ``-p clock_topic:=clock``
+(``/field7/clock``; a ``use_sim_time`` node of that farm remaps ``-r /clock:=/field7/clock``), and each writes
+its own default season log, ``$ROS_HOME/field7/crop_sim/season_log.csv``.
+
+The node's status (counters, the season log's health, level OK / WARN / ERROR) goes to ``/diagnostics`` as a
+``diagnostic_msgs/DiagnosticArray`` (one status named ``<namespace>/crop_sim: farm``) every second and at once
+on a change, where rqt_robot_monitor and the diagnostic aggregator read it.
+
+Reference data (weather files of scenarios such as ``benton-2000``): the ``data_dir`` parameter; when it is
+'', ``share/crop_sim_ros/data`` of a package installed in the ament index (if it has one), then
+``$CROP_SIM_DATA_DIR``, then the checkout's ``shared/data`` (walking up from the current directory, then from
+the package). If none has the file the node does not start, and its one line says where it looked and how to
+set it.
 
 Season log
 ----------
@@ -67,14 +81,15 @@ torn): the observation the day started with (the family's 9 extra columns empty 
 irrigation commanded and applied, the reward and its unit, the day's water fluxes, the true state at the end
 of the day and the season's farm terms (``term_*``: nan where a paper task has none, inf = no quota). A restarted node first removes a torn last line (a row cut short by a
 crash), then appends under a new ``run_id``. If a row cannot be written (a full disk), the day still counts:
-the caller is told (``log_error``), the failure is logged and counted on ``~/status`` (level ERROR), and the
-file keeps its last whole row.
+the caller is told (``log_error``), the failure is logged and counted in the node's status on ``/diagnostics``
+(level ERROR), and the file keeps its last whole row.
 
 Stopping and exit status
 ------------------------
 SIGINT and SIGTERM stop the node at any moment: the callback under way (a step, a reset) finishes, the
 last day's topics go out, the season log is closed, and the process exits with status 0, without a
-traceback (within ``EXIT_WITHIN_S`` of the log's closing, even if rclpy's teardown hangs). A bad start
+traceback; a second signal during that clean-up (Ctrl-C to a process group that a launcher also stops) is
+ignored (within ``EXIT_WITHIN_S`` of the log's closing, even if rclpy's teardown hangs). A bad start
 (unknown scenario or crop, a scenario file that is not a scenario, a value out of its range, a broken weather
 file, an unusable log path, an unknown command-line argument) is one line on stderr and exit status 2 (within
 ``EXIT_WITHIN_S`` of that line). An
@@ -83,6 +98,7 @@ unknown ``-p name:=value`` is a warning naming it and the known parameters.
 Parameters: see :data:`crop_sim_ros.sim_parameters.PARAMETERS` (``sim_node --help``, ``ros2 param describe /crop_sim <name>``). Changes
 of ``scenario``, ``data_dir``, ``crop``, ``cultivar``, ``soil``, ``co2_ppm``, ``noise_scale``,
 ``irrigation_cost_per_mm``, ``seed``, ``weather_season`` and ``log_path`` take effect at the next reset;
+``clock_topic`` is read at the start only (read-only);
 ``mode`` and ``days_per_second`` at once. Every change is checked when it is set (an unknown scenario or crop,
 a weather season beyond the scenario's pool, an unusable log path are refused, not stored). Refusals name
 the parameter, the file and what is wrong, never the contents of a file.
@@ -125,6 +141,12 @@ class _StopRequest:
     def _note(self, signum, frame) -> None:
         if self.signal_name is None:
             self.signal_name = signal.Signals(signum).name
+        # The first signal stops the node; a later one (Ctrl-C to a process group after a launcher's own SIGINT, a
+        # second SIGTERM) must not cut the clean-up short: ignored from now on, as by the agent node. (Keeping this
+        # handler would not do: Python puts SIGINT back to its default while the interpreter finalises, and a
+        # second SIGINT then killed the process, exit -2.)
+        for kind in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(kind, signal.SIG_IGN)
 
     @property
     def requested(self) -> bool:

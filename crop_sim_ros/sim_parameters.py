@@ -11,6 +11,7 @@ from typing import NamedTuple
 NODE_NAME = "crop_sim"
 MODES = ("lockstep", "free_running")
 INT32_MAX = 2**31 - 1
+CLOCK_TOPIC_DEFAULT = "/clock"
 
 
 class ParameterSpec(NamedTuple):
@@ -29,8 +30,9 @@ PARAMETERS = {
         "heldout) or the path of a scenario YAML file; applied at the next reset",
         constraints="must load: unknown names and files that are not scenarios are refused"),
     "data_dir": ParameterSpec(
-        "", "directory of the scenario weather files ('' = $CROP_SIM_DATA_DIR, else the shared/data found "
-        "walking up from the current directory, then from the package); applied at the next reset"),
+        "", "directory of the scenario weather files ('' = share/crop_sim_ros/data of an installed package if it "
+        "has one, else $CROP_SIM_DATA_DIR, else the shared/data found walking up from the current directory, then "
+        "from the package); applied at the next reset"),
     "seed": ParameterSpec(0, "seed of every reset (weather draw and all noise); -1 = do not reseed: continue the "
                              "random stream like Gymnasium's reset(seed=None)", -1, INT32_MAX),
     "weather_season": ParameterSpec(-1, "index of the scenario's season to grow at the next resets; -1 = drawn "
@@ -51,8 +53,18 @@ PARAMETERS = {
                                       "itself, days_per_second days per second of wall time (~/step is then "
                                       "refused)", constraints=" | ".join(MODES)),
     "days_per_second": ParameterSpec(5.0, "free_running: simulated days per second of wall time", 0.01, 1000.0),
-    "log_path": ParameterSpec("", "season log CSV, one row per day, appended ('' = "
-                                  "$ROS_HOME/crop_sim/season_log.csv, ROS_HOME defaulting to ~/.ros); applied at "
-                                  "the next reset", constraints="a writable file with this log's columns, or a "
-                                                                "new file in a writable directory"),
+    "log_path": ParameterSpec("", "season log CSV, one row per day, appended ('' = $ROS_HOME/<namespace>/<node "
+                                  "name>/season_log.csv: $ROS_HOME/crop_sim/season_log.csv for /crop_sim, "
+                                  "$ROS_HOME/field7/crop_sim/season_log.csv under -r __ns:=/field7; ROS_HOME "
+                                  "defaulting to ~/.ros); applied at the next reset",
+                              constraints="a writable file with this log's columns, or a new file in a writable "
+                                          "directory"),
+    "clock_topic": ParameterSpec(CLOCK_TOPIC_DEFAULT, "where farm time is published (rosgraph_msgs/Clock): '/clock' "
+                                                      "(the ROS time source of use_sim_time nodes), a relative name "
+                                                      "such as 'clock' for the node's namespace (two farms side by "
+                                                      "side: /field7/clock, /field8/clock), or '' for none; read at "
+                                                      "the start only",
+                                 constraints="read-only: set it with -p or a parameter file"),
 }
+# Parameters read once at the start (declared read-only: ros2 param set refuses them).
+READ_ONLY_PARAMETERS = ("clock_topic",)

@@ -25,7 +25,7 @@ os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("ROS_LOCALHOST_ONLY", None)
 
 # rclpy reads the two variables above when a context starts; these imports start none
-from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
@@ -157,12 +157,12 @@ def raw_step(ros, name, timeout: float = 5.0) -> dict:
 
 
 def status_reader(ros, name) -> list[dict]:
-    """A list that fills with the simulator's ~/status (ri.node_status_values), the latest last; latched, so the
-    current status arrives at once."""
+    """A list that fills with the status of the simulator ``name`` on /diagnostics (ri.node_status_values), the
+    latest last; latched, so the current status arrives at once. Other nodes' statuses are left out."""
     statuses: list[dict] = []
-    ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.STATUS_TOPIC}",
-                                 lambda m: statuses.append(ri.node_status_values(m)), ri.LATCHED_READER_QOS)
-    ros.spin_until(lambda: statuses, 20, "the latched ~/status")
+    ros.node.create_subscription(DiagnosticArray, ri.DIAGNOSTICS_TOPIC,
+                                 lambda m: statuses.extend(ri.node_statuses(m, name)), ri.LATCHED_READER_QOS)
+    ros.spin_until(lambda: statuses, 20, f"the latched status of {name} on /diagnostics")
     return statuses
 
 

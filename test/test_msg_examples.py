@@ -1,11 +1,19 @@
-"""msg_examples/: every topic and service of the simulator has an example, and each example fills the real
-message type (rosidl_runtime_py is not installable here, so a small YAML -> message filler does what
-``ros2 topic pub`` does) and matches what the node publishes (labels, sizes, types)."""
+"""msg_examples/: every topic and service of the simulator has an example, each example fills the real message
+type as ``ros2 topic pub`` / ``ros2 service call`` would (rosidl_runtime_py's ``set_message_fields`` on
+``yaml.safe_load``'s values; where rosidl_runtime_py is not installed, a port of that function that takes
+and refuses the same values: a byte field such as DiagnosticStatus.level takes ``!!binary``, not the ``"\x01"``
+that ``ros2 topic echo`` prints), matches what the node publishes (labels, sizes, types), and the examples
+agree with each other (the command of irrigation.yaml is for the day the reset of reset.yaml starts on, and
+step.yaml's answer is the next day)."""
 
 from __future__ import annotations
 
+import array
+import copy
 import importlib
 import json
+import shlex
+from datetime import date, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -34,15 +42,11 @@ INTERFACE = {
     "/crop_sim/irrigation": ("topic", "std_msgs/msg/Float64MultiArray", ri.IRRIGATION.labels[:2]),
     "/crop_sim/irrigation_step": ("topic", "std_msgs/msg/Float64MultiArray", ri.IRRIGATION.labels),
     "/crop_sim/irrigation_status": ("topic", "diagnostic_msgs/msg/DiagnosticStatus", None),
-    "/crop_sim/status": ("topic", "diagnostic_msgs/msg/DiagnosticStatus", None),
+    "/diagnostics": ("topic", "diagnostic_msgs/msg/DiagnosticArray", None),
     "/clock": ("topic", "rosgraph_msgs/msg/Clock", None),
     "/crop_sim/step": ("service", "std_srvs/srv/Trigger", None),
     "/crop_sim/reset": ("service", "std_srvs/srv/Trigger", None),
 }
-
-_PRIMITIVES = {"double": float, "float": float, "string": str, "boolean": bool,
-               **{t: int for t in ("int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64")}}
-
 
 def interface_class(name: str):
     """'std_msgs/msg/Float64MultiArray' -> the Python class."""
@@ -50,40 +54,56 @@ def interface_class(name: str):
     return getattr(importlib.import_module(f"{package}.{kind}"), type_name)
 
 
-def _value(field_type: str, value, where: str):
-    if field_type.startswith("sequence<") or field_type.endswith("]"):
-        inner = field_type[len("sequence<"):-1] if field_type.startswith("sequence<") else field_type.split("[")[0]
-        if not isinstance(value, list):
-            raise TypeError(f"{where}: expected a list for {field_type}, got {value!r}")
-        return [_value(inner, item, f"{where}[{i}]") for i, item in enumerate(value)]
-    if field_type == "octet":  # a byte: YAML "\0" (as ros2 topic echo prints it) or an integer
-        if isinstance(value, str) and len(value) == 1:
-            return bytes([ord(value)])
-        if isinstance(value, int) and 0 <= value < 256:
-            return bytes([value])
-        raise TypeError(f"{where}: expected a byte, got {value!r}")
-    if field_type in _PRIMITIVES:
-        kind = _PRIMITIVES[field_type]
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
-            raise TypeError(f"{where}: expected {field_type}, got {value!r}")
-        return value
-    if "/" in field_type:  # a nested message, e.g. 'std_msgs/MultiArrayLayout'
-        package, type_name = field_type.split("/")
-        return fill(interface_class(f"{package}/msg/{type_name}")(), value, where)
-    raise TypeError(f"{where}: unsupported field type {field_type}")
+def _port_of_set_message_fields(msg, values) -> None:
+    """rosidl_runtime_py.set_message.set_message_fields (Jazzy) without its 'auto'/'now' stamps: what
+    ``ros2 topic pub`` does with the YAML values. A field takes a value of its own Python type as is; otherwise
+    ``type(value)``, and if that raises TypeError a nested message filled from a mapping (so a byte field given
+    a str fails: "expected to be a dictionary but is a str")."""
+    from rosidl_parser.definition import AbstractNestedType, NamespacedType
+
+    try:
+        items = values.items()
+    except AttributeError:
+        raise TypeError(f"Value '{values}' is expected to be a dictionary but is a {type(values).__name__}") from None
+    slot_types = dict(zip(msg.get_fields_and_field_types(), msg.SLOT_TYPES))
+    for field_name, field_value in items:
+        field = getattr(msg, field_name)  # AttributeError for a field the type does not have
+        field_type = type(field)
+        if field_type is array.array:
+            value = field_type(field.typecode, field_value)
+        elif field_type is np.ndarray:
+            value = np.array(field_value, dtype=field.dtype)
+        elif type(field_value) is field_type:
+            value = field_value
+        else:
+            try:
+                value = field_type(field_value)
+            except TypeError:
+                value = field_type()
+                _port_of_set_message_fields(value, field_value)
+        rosidl_type = slot_types[field_name]
+        if isinstance(rosidl_type, AbstractNestedType) and isinstance(rosidl_type.value_type, NamespacedType):
+            element = interface_class("/".join(rosidl_type.value_type.namespaced_name()))
+            for n in range(len(value)):
+                submessage = element()
+                _port_of_set_message_fields(submessage, value[n])
+                value[n] = submessage
+        setattr(msg, field_name, value)
 
 
-def fill(message, values: dict, where: str = "message"):
-    """Set ``message``'s fields from a YAML mapping, as ``ros2 topic pub`` does; unknown fields raise."""
-    if not isinstance(values, dict):
-        raise TypeError(f"{where}: expected a mapping, got {values!r}")
-    types = message.get_fields_and_field_types()
-    for key, value in values.items():
-        if key not in types:
-            raise KeyError(f"{where}: {type(message).__name__} has no field {key!r} (fields: {', '.join(types)})")
-        setattr(message, key, _value(types[key], value, f"{where}.{key}"))
+try:
+    from rosidl_runtime_py.set_message import set_message_fields
+except ImportError:  # not on PyPI: the port above
+    set_message_fields = _port_of_set_message_fields
+
+
+def fill(message, values, where: str = "message"):
+    """``message`` with its fields set from YAML values as ``ros2 topic pub`` sets them (on a copy: the function
+    replaces the mappings of a list of messages by messages, in place)."""
+    try:
+        set_message_fields(message, copy.deepcopy(values))
+    except (TypeError, AttributeError, ValueError, AssertionError) as error:
+        raise type(error)(f"{where}: {error}") from None
     return message
 
 
@@ -124,13 +144,18 @@ def test_example_fills_the_real_type(path):
         if type_name.endswith("Float32MultiArray"):
             obs = ri.observation_from_message(first)
             assert obs.dtype == np.float32 and obs.shape == (PAPER.size,)
-        if example["name"] == "/crop_sim/status":
-            status = ri.node_status_values(first)
-            assert set(ri.NODE_STATUS_KEYS) <= {kv.key for kv in first.values}
+        if example["name"] == "/diagnostics":  # the node's one status, named after the node
+            (node_status,) = first.status
+            (status,) = ri.node_statuses(first, "/crop_sim")
+            assert [kv.key for kv in node_status.values] == list(ri.NODE_STATUS_KEYS)
             assert status["level"] == 1 and status["days_without_command"] == status["day"] - 1
         elif type_name.endswith("DiagnosticStatus"):
             status = ri.status_values(first)
-            assert status["accepted"] and status["day"] == 1.0 and status["irrigation_mm"] == 12.5
+            assert status["accepted"] and status["irrigation_mm"] == 12.5
+        if example["command"].startswith("ros2 topic pub"):  # the command publishes the example as it stands
+            *_, topic, type_arg, payload = shlex.split(example["command"])
+            assert (topic, type_arg) == (example["name"], type_name)
+            assert plain(fill(cls(), yaml.safe_load(payload), "command")) == plain(first)
         if example["name"] in ("/crop_sim/irrigation", "/crop_sim/irrigation_step"):
             assert first.data[0] == int(first.data[0]) and 0 <= first.data[1] <= 100
             assert example["command"].startswith("ros2 topic pub")
@@ -164,10 +189,52 @@ def test_family_examples_are_a_benton_quota_season():
     assert info["irrigation_applied_mm"] == 8.0 and obs[EXTENDED.index("irrigation_yesterday_mm")] == 8.0
 
 
-def test_filler_rejects_unknown_fields_and_bad_types():
+def _example(name: str) -> dict:
+    return yaml.safe_load((EXAMPLES / f"{name}.yaml").read_text())
+
+
+def test_the_examples_tell_one_story_reset_command_status_step_clock():
+    """reset.yaml starts episode E on day 0; irrigation.yaml and irrigation_step.yaml command that day (a
+    command for day 1 right after a reset is refused: "day 1 is in the future"); irrigation_status.yaml accepts
+    it as command #k and refuses one for the future; step.yaml applies #k and answers day 1, one day after the
+    reset's date, which /clock (clock.yaml) then shows."""
+    reset = json.loads(_example("reset")["response"]["message"])
+    step = json.loads(_example("step")["response"]["message"])
+    episode, day = reset["episode"], reset["day"]
+    assert day == 0
+    command = _example("irrigation")
+    assert command["message"]["data"] == [day, 12.5]
+    assert command["message_with_episode"]["data"] == [day, 12.5, episode]
+    assert _example("irrigation_step")["message"]["data"] == [day, 12.5, episode]
+    status_example = _example("irrigation_status")
+    accepted = ri.status_values(fill(interface_class("diagnostic_msgs/msg/DiagnosticStatus")(),
+                                     status_example["message"]))
+    assert accepted["accepted"] and accepted["day"] == accepted["current_day"] == day
+    assert accepted["message"] == f"accepted 12.5 mm for day {day} (episode {episode})"
+    refused = ri.status_values(fill(interface_class("diagnostic_msgs/msg/DiagnosticStatus")(),
+                                    status_example["rejected_message"]))
+    assert not refused["accepted"] and refused["current_day"] == day and refused["day"] == day + 1
+    assert refused["message"] == f"rejected: day {day + 1} is in the future: the current day is {day}"
+    assert refused["sequence"] == accepted["sequence"] + 1
+    assert (step["episode"], step["day"], step["irrigation_mm"]) == (episode, day + 1, 12.5)
+    assert step["command_sequence"] == accepted["sequence"]
+    stepped = date.fromisoformat(reset["date"]) + timedelta(days=1)
+    assert step["date"] == stepped.isoformat()
+    assert _example("clock")["message"]["clock"]["sec"] == ri.sim_time(date.fromisoformat(reset["date"]), 1).sec
+
+
+def test_filler_takes_and_refuses_what_ros2_topic_pub_does():
+    from diagnostic_msgs.msg import DiagnosticStatus
     from std_msgs.msg import Float64MultiArray
 
-    with pytest.raises(KeyError):
+    with pytest.raises(AttributeError):
         fill(Float64MultiArray(), {"dataa": [1.0]})
     with pytest.raises(TypeError):
         fill(Float64MultiArray(), {"data": "1.0"})
+    # a byte field: what `ros2 topic echo` prints ("\x01") is refused as `ros2 topic pub` refuses it; !!binary works
+    with pytest.raises(TypeError, match="expected to be a dictionary but is a str"):
+        fill(DiagnosticStatus(), yaml.safe_load('level: "\\x01"'))
+    assert fill(DiagnosticStatus(), yaml.safe_load("level: !!binary AQ==")).level == DiagnosticStatus.WARN
+    # every example's byte fields are written so
+    for path in FILES:
+        assert '  level: "' not in path.read_text().split("\necho:")[0], path.name

@@ -30,10 +30,29 @@ def test_package_xml_is_format_3_ament_python_with_its_dependencies():
     assert root.find("export/build_type").text == "ament_python"
     depends = {e.text for e in root if e.tag in ("depend", "exec_depend")}
     for key in ("rclpy", "std_msgs", "std_srvs", "sensor_msgs", "rosgraph_msgs", "diagnostic_msgs",
-                "builtin_interfaces", "rcl_interfaces", "python3-numpy", "python3-yaml", "python3-gymnasium-pip",
-                "python3-stable-baselines3-pip", "python3-refet-pip", "launch_ros"):
+                "builtin_interfaces", "rcl_interfaces", "python3-numpy", "python3-yaml", "launch_ros"):
         assert key in depends, key
     assert "python3-pytest" in {e.text for e in root if e.tag == "test_depend"}
+
+
+# rosdep keys of the ROS packages (rosdistro) and of rosdep's python.yaml that package.xml may name: every one
+# resolves, so `rosdep install --from-paths src` does not stop at an unknown key (python3-refet-pip has no rule).
+ROSDEP_KEYS = {"ament_python", "rclpy", "builtin_interfaces", "std_msgs", "std_srvs", "sensor_msgs", "rosgraph_msgs",
+               "diagnostic_msgs", "rcl_interfaces", "ament_index_python", "launch", "launch_ros", "python3-numpy",
+               "python3-yaml", "python3-matplotlib", "python3-pytest"}
+PIP_ONLY = ("gymnasium", "refet", "stable-baselines3", "pydantic")
+
+
+def test_package_xml_names_only_rosdep_keys_that_resolve_and_says_what_comes_from_pip():
+    root = ET.parse(REPO / "package.xml").getroot()
+    keys = {e.text for e in root if e.tag.endswith("depend") and e.get("condition") is None}
+    assert keys <= ROSDEP_KEYS, keys - ROSDEP_KEYS
+    assert not [key for key in keys if key.endswith("-pip")]
+    comments = (REPO / "package.xml").read_text()
+    requirements = (REPO / "requirements.txt").read_text()
+    docs = (REPO / "docs" / "ros.md").read_text()
+    for name in PIP_ONLY:  # named in package.xml's pip comment, pinned in requirements.txt, and in docs/ros.md
+        assert name in comments and name in requirements and name in docs, name
 
 
 def test_setup_installs_what_ros2_run_and_launch_need():
@@ -110,19 +129,26 @@ def config_name(value) -> str:
     return value.args[0]
 
 
-def test_launch_declares_namespace_seasons_and_log_path_and_passes_them_on(launch_file):
+def test_launch_declares_scenario_namespace_seasons_log_path_policy_and_clock_and_passes_them_on(launch_file):
+    from crop_sim_ros.sim_parameters import PARAMETERS
+
     (entities,) = launch_file.generate_launch_description().args
     declared = {e.args[0]: e.kwargs["default_value"] for e in entities
                 if type(e).__name__ == "DeclareLaunchArgument"}
-    assert set(declared) == {"params_file", "policy", "seasons", "namespace", "log_path"}
+    assert set(declared) == {"params_file", "scenario", "policy", "seasons", "namespace", "log_path", "clock_topic"}
     assert (declared["seasons"], declared["namespace"], declared["log_path"]) == ("1", "", "")
+    # the simulator's own defaults, as the parameter file has them
+    params = yaml.safe_load((REPO / "config" / "farm_params.yaml").read_text())["crop_sim"]["ros__parameters"]
+    for name in ("scenario", "clock_topic"):
+        assert declared[name] == PARAMETERS[name].default == params[name], name
     sim, agent = [e for e in entities if type(e).__name__ == "Node"]
     assert (sim.kwargs["executable"], agent.kwargs["executable"]) == ("sim_node", "agent_node")
     for node in (sim, agent):
         assert config_name(node.kwargs["namespace"]) == "namespace"
         assert config_name(node.kwargs["parameters"][0]) == "params_file"
-    log_path = sim.kwargs["parameters"][1]["log_path"]
-    assert config_name(log_path.args[0]) == "log_path" and log_path.kwargs == {"value_type": str}
+    for name in ("scenario", "log_path", "clock_topic"):  # typed: '' and numeric-looking names stay strings
+        value = sim.kwargs["parameters"][1][name]
+        assert config_name(value.args[0]) == name and value.kwargs == {"value_type": str}, name
     overrides = agent.kwargs["parameters"][1]
     assert overrides["drive"] is True
     assert config_name(overrides["seasons"].args[0]) == "seasons" and overrides["seasons"].kwargs == {"value_type": int}

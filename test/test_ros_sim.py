@@ -475,7 +475,7 @@ def test_free_running_mode_steps_by_itself_and_counts_days_without_a_command(sha
         (result,) = set_parameter(ros, name, mode="free_running")
         assert result.successful
         ros.spin_until(lambda: days and days[-1] >= 20, 20, "20 free-running days")
-        # nobody commands: every day since day 1 passed without a command; a warning, on ~/status and in the log
+        # nobody commands: every day since day 1 passed without a command; a warning, on /diagnostics and in the log
         ros.spin_until(lambda: statuses[-1]["mode"] == "free_running" and statuses[-1]["day"] >= 20, 10,
                        "the free-running status")
         status = statuses[-1]

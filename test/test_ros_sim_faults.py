@@ -27,6 +27,7 @@ import ros_support  # noqa: E402  (sets ROS_DOMAIN_ID / discovery range before a
 import rclpy.parameter  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
+import rosgraph_msgs.msg  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
 from crop_agent_ros.ros.spin import PrivateRos  # noqa: E402
@@ -162,9 +163,37 @@ def test_sigterm_at_random_moments_exits_0_without_traceback_and_log_whole(tmp_p
 
 # --- the season log --------------------------------------------------------------------------------------------
 
+@pytest.mark.parametrize("trial", range(3))
+def test_a_second_sigint_during_the_clean_up_is_ignored(tmp_path, trial):
+    """Ctrl-C to a process group that a launcher also stops with SIGINT (``ros2 launch``, ``ros2 run``): two
+    SIGINTs 0.1 s apart while the node steps. The second one lands in the clean-up (once the interpreter
+    finalised, Python's default SIGINT action killed the process: exit -2, ``ros2 run`` 254); it is ignored,
+    as by the agent node: exit 0, no traceback, the log whole."""
+    log, out = tmp_path / "season.csv", tmp_path / "sim.out"
+    process = popen_sim(["-r", f"__ns:={ros_support.unique_namespace('int2')}", "-p", "mode:=free_running",
+                         "-p", "days_per_second:=50.0", "-p", f"log_path:={log}"], out)
+    try:
+        wait_for(lambda: (log.exists() and log.read_bytes().count(b"\n") >= 3) or process.poll() is not None, 60,
+                 "the first logged days")
+        time.sleep(0.05 * trial)
+        process.send_signal(signal.SIGINT)
+        time.sleep(0.1)
+        process.send_signal(signal.SIGINT)
+        code = process.wait(30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    output = out.read_text(errors="replace")
+    assert code == 0 and "Traceback" not in output and "stopped by SIGINT" in output, (code, output[-3000:])
+    assert "closed:" in output, output[-2000:]
+    rows = whole_rows(log)
+    assert [int(r[LOG_COLUMNS.index("day")]) for r in rows] == list(range(len(rows)))
+
+
 def test_a_log_write_failure_is_reported_to_the_caller_and_the_node_goes_on(tmp_path):
     """RLIMIT_FSIZE on the node's process: once the log reaches it, writing a row fails (EFBIG). Every step still
-    advances exactly one day; the steps whose row was lost say so (log_error), ~/status counts them (level
+    advances exactly one day; the steps whose row was lost say so (log_error), /diagnostics counts them (level
     ERROR), and the log keeps only whole rows."""
     limit = 4000  # bytes: the header and a few rows
     log, out = tmp_path / "season.csv", tmp_path / "sim.out"
@@ -181,7 +210,7 @@ def test_a_log_write_failure_is_reported_to_the_caller_and_the_node_goes_on(tmp_
             assert all(s["success"] for s in summaries), summaries
             assert [s["day"] for s in summaries] == list(range(1, n + 1)), "each step advanced exactly one day"
             ros.spin_until(lambda: statuses[-1]["log_rows_written"] + statuses[-1]["log_rows_lost"] == n, 10,
-                           "every row counted on ~/status")
+                           "every row counted on /diagnostics")
             status = statuses[-1]
         assert process.poll() is None, "the node is still running"
     finally:
@@ -382,6 +411,54 @@ def test_sim_node_from_a_colcon_style_install_finds_the_data_of_the_checkout_it_
         assert stop(process) == 0, out.read_text()
 
 
+def test_sim_node_with_no_data_found_says_where_it_looked_and_how_to_set_it(tmp_path):
+    """The package copied outside any tree with shared/data, run from there with CROP_SIM_DATA_DIR unset and no
+    ament index: benton-2000 (a weather file) cannot start, and the one-line error says where the node looked
+    and how to point it at the data."""
+    site = tmp_path / "ws" / "install" / "crop_sim_ros" / "lib" / "python3.11" / "site-packages"
+    shutil.copytree(REPO / "crop_sim_ros", site / "crop_sim_ros", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**isolated_ros_env(), "PYTHONPATH": str(site)}
+    for name in ("CROP_SIM_DATA_DIR", "AMENT_PREFIX_PATH"):
+        env.pop(name, None)
+    if find_data_dir(None, tmp_path, site) is not None:
+        pytest.skip("a shared/data lies above the test's temporary directory on this machine")
+    out = tmp_path / "sim.out"
+    process = popen_sim(["-r", f"__ns:={ros_support.unique_namespace('nodata')}", "-p", "scenario:=benton-2000",
+                         "-p", f"log_path:={tmp_path / 'season.csv'}"], out, cwd=tmp_path, env=env)
+    try:
+        code = process.wait(60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    output = out.read_text()
+    (line,) = [line for line in output.splitlines() if "cannot start" in line]
+    assert code == 2, output
+    for needle in ("scenario 'benton-2000': weather file", "share/crop_sim_ros/data", "$CROP_SIM_DATA_DIR (unset)",
+                   "-p data_dir:=/path/to/shared/data", "export CROP_SIM_DATA_DIR=/path/to/shared/data"):
+        assert needle in line, (needle, line)
+
+
+def test_installed_data_dir_is_share_data_of_the_package_in_the_ament_index(tmp_path, monkeypatch, shared_data):
+    """share/crop_sim_ros/data of a package in the ament index comes first, before CROP_SIM_DATA_DIR: a node
+    started with data_dir '' builds its scenario from there."""
+    from crop_sim_ros import sim
+
+    prefix = tmp_path / "install"
+    (prefix / "share" / "ament_index" / "resource_index" / "packages").mkdir(parents=True)
+    (prefix / "share" / "ament_index" / "resource_index" / "packages" / "crop_sim_ros").write_text("")
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix))
+    monkeypatch.setenv("CROP_SIM_DATA_DIR", str(tmp_path / "elsewhere"))
+    assert sim.installed_data_dir() is None  # in the index, but no data installed: the next places are searched
+    (prefix / "share" / "crop_sim_ros").mkdir(parents=True, exist_ok=True)
+    (prefix / "share" / "crop_sim_ros" / "data").symlink_to(shared_data)
+    assert sim.installed_data_dir() == prefix / "share" / "crop_sim_ros" / "data"
+    config = sim.EnvConfig("benton-2000", "", "", "", "", -1.0, 1.0, -1.25e-4)
+    assert sim.build_scenario(config).resolved_data_dir == prefix / "share" / "crop_sim_ros" / "data"
+    monkeypatch.delenv("AMENT_PREFIX_PATH")
+    assert sim.installed_data_dir() is None
+
+
 # --- free running, /clock, bursts -------------------------------------------------------------------------------
 
 def test_clock_has_the_time_source_qos_and_a_late_use_sim_time_node_follows_it(sim, ros):
@@ -410,12 +487,69 @@ def test_clock_has_the_time_source_qos_and_a_late_use_sim_time_node_follows_it(s
     assert datetime.fromtimestamp(expected / 1e9, timezone.utc).date() == date.fromordinal(sowing.toordinal() + 4)
 
 
+def test_two_farms_side_by_side_keep_their_own_clocks_and_logs(tmp_path, ros):
+    """Two simulators under /field7_* and /field8_* with ``clock_topic:=clock`` and the default log path, stepped
+    in turn for a few days each (the first one twice as fast): each namespace's clock only moves forward
+    (/clock shared by both went backwards), nothing is published on /clock, and each farm writes its own
+    $ROS_HOME/<namespace>/crop_sim/season_log.csv with only its own run's rows. A use_sim_time node remapped
+    to one farm's clock follows that farm."""
+    ros_home = tmp_path / "ros_home"
+    env = {**isolated_ros_env(), "ROS_HOME": str(ros_home)}
+    tag = uuid.uuid4().hex[:6]
+    namespaces = (f"/field7_{tag}", f"/field8_{tag}")
+    processes = [popen_sim(["-r", f"__ns:={ns}", "-p", "clock_topic:=clock", "-p", f"seed:={k}"],
+                           tmp_path / f"sim_{k}.out", env=env) for k, ns in enumerate(namespaces)]
+    ticks: dict[str, list[int]] = {ns: [] for ns in namespaces}
+    try:
+        for ns in namespaces:
+            ros.node.create_subscription(rosgraph_msgs.msg.Clock, f"{ns}/clock",
+                                         lambda m, ns=ns: ticks[ns].append(m.clock.sec), ri.CLOCK_QOS)
+        clients = [connect(ros, f"{ns}/crop_sim") for ns in namespaces]
+        sowing = []
+        for k, client in enumerate(clients):
+            _, info = client.reset(seed=k)
+            sowing.append(date.fromisoformat(info["date"]))
+        fast, slow = clients
+        for _ in range(3):  # field7 runs ahead: a shared clock would jump back at every field8 step
+            fast.step(0.0)
+            fast.step(0.0)
+            slow.step(0.0)
+        expected = {namespaces[0]: ri.sim_time(sowing[0], 6).sec, namespaces[1]: ri.sim_time(sowing[1], 3).sec}
+        ros.spin_until(lambda: all(ticks[ns] and ticks[ns][-1] == expected[ns] for ns in namespaces), 10,
+                       "each farm's last day on its own clock")
+        for ns in namespaces:
+            assert all(a <= b for a, b in zip(ticks[ns], ticks[ns][1:])), (ns, ticks[ns])  # a reset repeats day 0
+            assert {p.node_namespace for p in ros.node.get_publishers_info_by_topic(f"{ns}/clock")} == {ns}
+        assert not [p for p in ros.node.get_publishers_info_by_topic("/clock") if p.node_namespace in namespaces]
+        (refused,) = set_parameter(ros, f"{namespaces[0]}/crop_sim", clock_topic="/clock")  # read at the start only
+        assert not refused.successful and "read-only" in refused.reason, refused
+        with PrivateRos(f"sim_time_{tag}", args=["--ros-args", "-r", f"/clock:={namespaces[1]}/clock"],
+                        parameter_overrides=[rclpy.parameter.Parameter("use_sim_time", value=True)]) as late:
+            late.spin_until(lambda: late.node.count_publishers(f"{namespaces[1]}/clock") >= 1, 20, "field8's clock")
+            slow.step(0.0)  # field8's day 4
+            late.spin_until(lambda: late.node.get_clock().now().nanoseconds
+                            == ri.sim_time(sowing[1], 4).sec * 10**9, 10, "field8's farm time")
+    finally:
+        codes = [stop(process) for process in processes]
+    outputs = [(tmp_path / f"sim_{k}.out").read_text() for k in range(2)]
+    assert codes == [0, 0], outputs
+    logs = [ros_home / ns.strip("/") / "crop_sim" / "season_log.csv" for ns in namespaces]
+    assert not (ros_home / "crop_sim" / "season_log.csv").exists()
+    days = []
+    for log, output in zip(logs, outputs):
+        assert f"log {log}" in output, output
+        rows = whole_rows(log)
+        assert len({r[LOG_COLUMNS.index("run_id")] for r in rows}) == 1, "one run per log"
+        days.append([int(r[LOG_COLUMNS.index("day")]) for r in rows])
+    assert days == [[0, 1, 2, 3, 4, 5], [0, 1, 2, 3]]
+
+
 def test_a_burst_of_commands_is_queued_not_dropped_and_counted(sim, ros):
     """1,000 commands published back to back: the simulator's keep-all subscription takes every one (with depth
-    10 it kept 69 of 1,000 in a run), each is answered on ~/irrigation_status, ~/status counts them, and the day gets the
-    last one. The client publishes keep-all too, as the README asks of a client that sends bursts: a depth-10
-    publisher dropped most of its own burst on a loaded machine before the simulator could take it (10 and 168
-    of 1,000 arrived in 2 of 6 runs with the other core busy), which the counter on ~/status makes visible. The
+    10 it kept 69 of 1,000 in a run), each is answered on ~/irrigation_status, /diagnostics counts them, and the
+    day gets the last one. The client publishes keep-all too, as the README asks of a client that sends bursts: a
+    depth-10 publisher dropped most of its own burst on a loaded machine before the simulator could take it (10 and 168
+    of 1,000 arrived in 2 of 6 runs with the other core busy), which the counter on /diagnostics makes visible. The
     simulator's answer writer keeps 1,000: at depth 10 a starved reader could lose answers it needed resent (the
     suite failed this test once under load, its assertion not kept; 12 of 12 loaded reruns then passed, and the
     graph does not show a writer's depth, so only this behaviour checks it)."""
