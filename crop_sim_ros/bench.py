@@ -1,4 +1,5 @@
 """``crop-sim bench``: throughput of the crop model (and of the irrigation environments, when present).
+``--backend jax`` adds the JAX environment beside the numpy vector env (:mod:`crop_sim_ros.task.jax_bench`).
 
 Prints field-days per second for one field (array path and scalar path) and for a batch of fields over a
 full season. Machines here are shared and noisy: every run first prints the CPU model and the load average,
@@ -76,6 +77,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="fields in the batched model and vector environment runs (default 10000, at most 1000000)")
     parser.add_argument("--repeats", type=int, default=3, help="best of this many seasons (default 3, at most 100)")
     parser.add_argument("--model-only", action="store_true", help="skip the environment benchmarks")
+    parser.add_argument("--backend", choices=("numpy", "jax"), default="numpy",
+                        help="jax: also the JAX environment beside the numpy vector env, float64 and float32, "
+                             "interleaved, also with --model-only (needs pip install crop_sim_ros[jax])")
 
 
 MAX_FIELDS = 1_000_000  # the vector environment's own bound
@@ -93,5 +97,12 @@ def run(args: argparse.Namespace) -> int:
     if not args.model_only:
         from .task.bench import bench_env  # the environment layer; imported only when asked for
         bench_env(num_fields=args.fields, repeats=args.repeats)
+    if args.backend == "jax":
+        try:
+            from .task.jax_bench import bench_jax  # imports jax; only when asked for
+        except ImportError as error:
+            raise SystemExit(f"--backend jax needs JAX (pip install crop_sim_ros[jax]): {error}") from None
+        print("JAX environment and numpy vector environment, interleaved:")
+        bench_jax(num_fields=args.fields, repeats=args.repeats)
     print(f"machine after the run: load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0

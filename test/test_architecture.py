@@ -19,7 +19,7 @@ def _loaded_after_import(modules: list[str]) -> set[str]:
 
 @pytest.mark.parametrize("modules, forbidden", [
     (["crop_sim_ros.model", "crop_sim_ros.weather", "crop_sim_ros.validation"], {"rclpy", "gymnasium", "torch"}),
-    (["crop_sim_ros.task", "crop_sim_ros.session"], {"rclpy", "torch", "stable_baselines3", "crop_agent_ros"}),
+    (["crop_sim_ros.task", "crop_sim_ros.session"], {"rclpy", "torch", "stable_baselines3", "crop_agent_ros", "jax"}),
 ])
 def test_lower_layers_do_not_load_higher_ones(modules, forbidden):
     assert not _loaded_after_import(modules) & forbidden

@@ -3,7 +3,15 @@
 In the style of Gymnasium's functional environments: :func:`task_params` (the static parameters),
 :func:`initial`, :func:`transition`, :func:`observation`, :func:`reward`, :func:`terminal`,
 :func:`truncated`. Every function works on arrays of shape (N,) (one row per field) and draws randomness
-only from the ``numpy.random.Generator`` it is given. The crop itself is :func:`crop_sim_ros.model.step`.
+only from the ``numpy.random.Generator`` it is given, or takes it drawn by the caller (``noise``). The crop itself
+is :func:`crop_sim_ros.model.step`.
+
+Array namespace: the functions of a step (:func:`daily_weather`, :func:`admissible_irrigation_mm`,
+:func:`transition`, :func:`observation`, :func:`reward`, :func:`terminal`, :func:`truncated`) take ``xp``:
+numpy (the default: the vector environment's path), :data:`~crop_sim_ros.model.simple.SCALAR_MATH` (one field as
+Python floats) or any numpy-like namespace without in-place updates, such as ``jax.numpy``
+(:mod:`crop_sim_ros.task.jax_env`), where the table is any object with the arrays of a :class:`SeasonTable` the
+step reads (``model_weather``, ``observation_rows``, ``et0_mm``, ``n_days``) and the observation noise is given.
 
 Weather lives in a :class:`SeasonTable` of M prepared seasons; each field holds the index of its season.
 
@@ -56,7 +64,7 @@ import numpy as np
 
 from ..model import (CropState, DailyFluxes, DailyWeather, FieldParameters, harvestable_yield_kg_ha,
                      initial_state, repeat_parameters, step)
-from ..model.simple import scalar_parameters, scalar_state
+from ..model.simple import SCALAR_MATH, scalar_parameters, scalar_state
 from ..weather import WeatherSeries
 from .layout import (BIOMASS, DAY, FORECAST, PAPER, PAW, PAW_OBSERVED, QUOTA_OBSERVED_CAP_MM, THERMAL_TIME, TODAY,
                      WEATHER_NAMES, ObservationLayout)
@@ -179,12 +187,16 @@ def _row_index(table_days: int, season, day):
 
 def _daily_weather(model_weather: np.ndarray, season, day, xp=np) -> DailyWeather:
     """The model's weather of day ``day`` of season ``season``: index arrays of shape (N,), or two ints
-    for one field held as Python floats (``xp`` = SCALAR_MATH)."""
+    for one field held as Python floats (``xp`` = SCALAR_MATH); another namespace (jax.numpy) gathers with
+    its own indexing (any shape of indices)."""
     if xp is np:
         index = _row_index(model_weather.shape[2], season, day)
         flat = model_weather.reshape(len(model_weather), -1)
         return DailyWeather(*(np.take(variable, index) for variable in flat))
-    return DailyWeather(*model_weather[:, season, day].tolist())
+    if xp is SCALAR_MATH:
+        return DailyWeather(*model_weather[:, season, day].tolist())
+    days = model_weather[:, season, day]
+    return DailyWeather(*(days[k] for k in range(len(DailyWeather._fields))))
 
 
 def potential_yield_t_ha(params: FieldParameters, weather: np.ndarray, et0_mm: np.ndarray,
@@ -402,9 +414,14 @@ def transition(params: TaskParams, table: SeasonTable, state: TaskState,
     return TaskState(crop, state.season, state.terms, state.irrigated_mm + irrigation_mm, irrigation_mm), fluxes
 
 
-def observation(params: TaskParams, table: SeasonTable, state: TaskState, rng: np.random.Generator) -> np.ndarray:
+def observation(params: TaskParams, table: SeasonTable, state: TaskState, rng: np.random.Generator | None = None,
+                noise: np.ndarray | None = None, xp=np) -> np.ndarray:
     """The (N, layout size) float32 observations of ``state`` (see :mod:`crop_sim_ros.task.layout`); noise
-    drawn from ``rng``. A scalar state (one field as Python floats) gives one observation of shape (size,)."""
+    drawn from ``rng``, or given: ``noise`` (N, ``params.noise_columns``) float32 standard normals, as ``rng``
+    would draw them (unused when the task has no noise). A scalar state (one field as Python floats) gives one
+    observation of shape (size,). ``xp`` other than numpy: see :func:`_observation_functional`."""
+    if xp is not np:
+        return _observation_functional(params, table, state, noise, xp)
     crop = state.crop
     # Day, today's and tomorrow's weather (the table's padding makes the day after the last day the last day).
     rows = table.observation_rows
@@ -420,7 +437,10 @@ def observation(params: TaskParams, table: SeasonTable, state: TaskState, rng: n
     if params.noisy:
         # Noise columns: the 8 forecast values and PAW (observation columns 11-19), then biomass, then the
         # dropout draw (if the task has dropouts).
-        noise = rng.standard_normal(obs.shape[:-1] + (params.noise_columns,), dtype=np.float32)
+        if noise is None:
+            noise = rng.standard_normal(obs.shape[:-1] + (params.noise_columns,), dtype=np.float32)
+        else:  # scaled in place below: the caller's array stays as given
+            noise = np.array(noise, dtype=np.float32, copy=True).reshape(obs.shape[:-1] + (params.noise_columns,))
         if params.paw_dropout_probability > 0.0:
             missing = noise[..., -1] < params._dropout_z
             noise = noise[..., :-1]
@@ -450,18 +470,61 @@ def _per_row(ufunc: np.ufunc, values: np.ndarray, row: np.ndarray) -> None:
     ufunc(values[whole:], row, out=values[whole:])
 
 
-def _extension(params: TaskParams, table: SeasonTable, state: TaskState) -> np.ndarray:
+def _observation_functional(params: TaskParams, table, state: TaskState, noise, xp) -> np.ndarray:
+    """:func:`observation` in a namespace without in-place updates (jax.numpy), the noise given: the same
+    float32 values in the same order of operations (the crop's values rounded to float32, the scaled noise
+    added in float32, then the lower bounds, the dropouts and the missing sensor), for state arrays of any
+    shape (a field's scalars under ``jax.vmap``, or (N,))."""
+    crop = state.crop
+    f32 = xp.float32
+    rows = table.observation_rows[state.season, crop.days_since_sowing]
+
+    def column(values):
+        return xp.asarray(values, dtype=f32)[..., None]
+
+    parts = [column(crop.biomass_kg_ha / KG_PER_T), column(crop.thermal_time_degc_d), rows[..., DAY:PAW],
+             column(crop.plant_available_water_mm)]
+    if params.layout is not PAPER:
+        parts.append(_extension(params, table, state, xp))
+    obs = xp.concatenate(parts, axis=-1)
+    size = params.layout.size
+    columns = np.arange(size)
+    if params.noisy:
+        # numpy rounds the product noise x std to float32, then the sum. A compiler may fuse a float32 multiply
+        # and add into one multiply-add (one rounding: XLA on CPU does), so where the namespace offers a wider
+        # float the product is formed there and rounded to float32 explicitly (``round_to_float32``: an
+        # operation the compiler keeps), and the sum formed there too: the same values as numpy's.
+        noise = xp.asarray(noise, dtype=f32)
+        wide = xp.zeros(()).dtype
+        round_to_float32 = getattr(xp, "round_to_float32", lambda values: values.astype(f32).astype(wide))
+        scaled = round_to_float32(noise[..., :len(params.noise_std)].astype(wide) * params.noise_std.astype(wide))
+        zeros = xp.zeros(scaled.shape[:-1] + (FORECAST.start - 1,), dtype=wide)
+        after = xp.zeros(scaled.shape[:-1] + (size - PAW - 1,), dtype=wide)
+        added = obs.astype(wide) + xp.concatenate([scaled[..., -1:], zeros, scaled[..., :-1], after], axis=-1)
+        obs = xp.maximum(added.astype(f32), params.layout.low)
+        if params.paw_dropout_probability > 0.0:
+            missing = (noise[..., -1] < params._dropout_z)[..., None]
+            obs = xp.where(missing & ((columns == PAW) | (columns == PAW_OBSERVED)), f32(0.0), obs)
+    if not params.paw_sensor:
+        obs = xp.where(columns == PAW, f32(0.0), obs)
+    return obs
+
+
+def _extension(params: TaskParams, table: SeasonTable, state: TaskState, xp=np) -> np.ndarray:
     """The family's extra observation values (layout columns 20-28) of ``state``, float32."""
     terms = state.terms
     day = state.crop.days_since_sowing
-    et0 = np.take(table.et0_mm, _row_index(table.et0_mm.shape[1], state.season, day))
-    left = np.minimum(np.maximum(np.asarray(terms.quota_mm) - state.irrigated_mm, 0.0), QUOTA_OBSERVED_CAP_MM)
-    values = (np.asarray(terms.yield_value_per_t) * params.dry_matter_fraction, terms.water_cost_per_mm,
-              params.event_cost, left, np.maximum(params.nominal_season_days - np.asarray(day), 0),
-              min(params.capacity_mm_per_day, params.max_irrigation_mm), 1.0 if params.paw_sensor else 0.0,
+    if xp is np:
+        et0 = np.take(table.et0_mm, _row_index(table.et0_mm.shape[1], state.season, day))
+    else:
+        et0 = table.et0_mm[state.season, day]
+    left = xp.minimum(xp.maximum(xp.asarray(terms.quota_mm) - state.irrigated_mm, 0.0), QUOTA_OBSERVED_CAP_MM)
+    values = (xp.asarray(terms.yield_value_per_t) * params.dry_matter_fraction, terms.water_cost_per_mm,
+              params.event_cost, left, xp.maximum(params.nominal_season_days - xp.asarray(day), 0),
+              xp.minimum(params.capacity_mm_per_day, params.max_irrigation_mm), 1.0 if params.paw_sensor else 0.0,
               state.last_irrigation_mm, et0)
-    shape = np.shape(day)
-    return np.stack([np.broadcast_to(np.asarray(v, dtype=np.float32), shape) for v in values], axis=-1)
+    shape = xp.shape(day)
+    return xp.stack([xp.broadcast_to(xp.asarray(v, dtype=xp.float32), shape) for v in values], axis=-1)
 
 
 def reward(params: TaskParams, state: TaskState, irrigation_mm: np.ndarray, next_state: TaskState,
@@ -501,7 +564,8 @@ def terminal(state: TaskState) -> np.ndarray:
 
 
 def truncated(table: SeasonTable, state: TaskState, xp=np) -> np.ndarray:
-    """The field's weather (at most max_season_days days) ran out before maturity."""
+    """The field's weather (at most max_season_days days) ran out before maturity. ``xp`` other than numpy:
+    ``table.n_days`` an array of that namespace."""
     return xp.logical_not(state.crop.mature) & (state.crop.days_since_sowing >= table.n_days[state.season])
 
 
