@@ -8,7 +8,10 @@ test_task_ids.py, and padded to one size so that the tasks of one shape share on
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -240,3 +243,12 @@ def test_params_of_a_given_table_match_its_arrays():
     params = params_of(table, env.max_steps_in_episode, env.task)
     np.testing.assert_array_equal(np.asarray(params.model_weather), table.model_weather)
     assert int(params.max_steps_in_episode) == 200
+
+
+def test_the_quickstarts_jax_example_runs_as_written():
+    text = (Path(__file__).resolve().parents[1] / "docs" / "quickstart.md").read_text()
+    example = text.split("## JAX")[1].split("```python\n")[1].split("```")[0]
+    done = subprocess.run([sys.executable, "-c", example], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    shape, mean_reward = done.stdout.split(") ")
+    assert shape == "(64, 29" and float(mean_reward) < 0.0  # 5 mm on day 0 costs water, no yield yet
