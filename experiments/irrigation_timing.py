@@ -66,8 +66,6 @@ def timings(task_name: str, set_name: str, agents: dict[str, Path], seasons: int
         policies[name] = LearnedPolicy(Path(directory) / "model.zip", name=name)
     result = []
     for name, policy in policies.items():
-        if hasattr(policy, "site_climate"):  # an agent with a climate outlook, on real seasons
-            policy.site_climate = chosen.site_climate
         episodes = run_episodes(policy, chosen.scenario, chosen.seasons, seed=0, terms=terms, record=True)
         irrigation = np.array(episodes.daily["irrigation_mm"])   # (days, seasons), NaN after a season's end
         paw = np.array(episodes.daily["paw_mm"])

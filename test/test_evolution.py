@@ -54,7 +54,7 @@ def test_candidates_act_on_their_own_fields_with_their_own_parameters():
     scaler = ObservationScaler(tuple([0.0] * EXTENDED.size), tuple([1.0] * EXTENDED.size))
     obs = rng.normal(size=(3 * 4, EXTENDED.size))
     obs[:, EXTENDED.index("days_since_sowing")] = 5.0
-    mm = Population(actor, candidates, 4, AgentInterface(scaler, 1)).act(obs)
+    mm = Population(actor, candidates, 4, AgentInterface(scaler)).act(obs)
     for p in range(3):
         alone = actor_outputs(actor.unflatten(candidates[[p]]), scaler(obs[4 * p:4 * p + 4])[None].astype(float))[0]
         np.testing.assert_allclose(mm[4 * p:4 * p + 4], action_to_mm(alone))

@@ -1,15 +1,14 @@
-"""The family's learned agents: observation scaling, action in mm, history, policy files (tiny budgets only)."""
+"""The family's learned agents: observation scaling, action in mm, policy files (tiny budgets only)."""
 
 from __future__ import annotations
 
 import json
 import tempfile
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from crop_agent_ros.policies.learned import ACTION_SCALE_MM, History, LearnedPolicy, ObservationScaler, action_to_mm
+from crop_agent_ros.policies.learned import ACTION_SCALE_MM, LearnedPolicy, ObservationScaler, action_to_mm
 from crop_sim_ros.task.layout import EXTENDED
 from policy_files import tiny_task_training
 
@@ -30,24 +29,13 @@ def test_scaler_centres_and_scales_and_floors_constant_columns():
     assert scaler(np.full(EXTENDED.size, 1e9)).max() == 10.0
 
 
-def test_history_shifts_and_restarts_a_new_season():
-    history = History(3)
-    first = history.push(np.array([[1.0], [10.0]]), np.array([0, 0]))
-    np.testing.assert_array_equal(first, [[1, 1, 1], [10, 10, 10]])
-    second = history.push(np.array([[2.0], [20.0]]), np.array([1, 1]))
-    np.testing.assert_array_equal(second, [[1, 1, 2], [10, 10, 20]])
-    # field 1 starts a new season (day 0): its history restarts from its first observation
-    third = history.push(np.array([[3.0], [99.0]]), np.array([2, 0]))
-    np.testing.assert_array_equal(third, [[1, 2, 3], [99, 99, 99]])
-
-
 def _train(tmp_path, **settings):
     out = tmp_path / "run"
     return tiny_task_training(out, "benton-sensing", 3, **settings), out
 
 
 def test_tiny_training_writes_loadable_policies(tmp_path, monkeypatch):
-    algorithm, history = "ppo", 1
+    algorithm = "ppo"
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(scratch))  # where SB3's default logger makes its folder
@@ -55,7 +43,7 @@ def test_tiny_training_writes_loadable_policies(tmp_path, monkeypatch):
     assert not list(scratch.glob("SB3-*")), "training left an SB3 log folder in the temporary directory"
     assert summary["steps_run"] >= 512 and summary["algorithm"] == algorithm
     config = json.loads((out / "model.json").read_text())
-    assert config["history"] == history and len(config["scaler"]["mean"]) == EXTENDED.size
+    assert config["history"] == 1 and len(config["scaler"]["mean"]) == EXTENDED.size
     # the run's policy is its checkpoint with the best validation return (the curve's rows)
     import csv
     with open(out / "learning_curve.csv", newline="") as f:
@@ -69,7 +57,7 @@ def test_tiny_training_writes_loadable_policies(tmp_path, monkeypatch):
     from crop_agent_ros.policies.rollout import run_episodes
     episodes = run_episodes(policy, "benton-sensing", np.arange(3), seed=0)
     assert np.all(episodes.days > 60) and np.all(np.isfinite(episodes.episode_return))
-    assert np.all(episodes.water_mm <= episodes.water_mm.max()) and early.history.k == history
+    assert np.all(episodes.water_mm <= episodes.water_mm.max()) and early.interface.input_size == EXTENDED.size
     with pytest.raises(ValueError, match="expected observations of 29 values"):
         policy.act(np.zeros(20))
 
@@ -77,10 +65,11 @@ def test_tiny_training_writes_loadable_policies(tmp_path, monkeypatch):
 def test_a_policy_file_with_other_spaces_is_refused_at_load(tmp_path):
     summary, out = _train(tmp_path)
     config = json.loads((out / "model.json").read_text())
-    config["history"] = 3  # the network takes 29 values
+    config["paw_filter"] = {"capacity_mm": 120.0, "sensor_sd_mm": 10.0}  # the network takes 29 values
     (out / "model.json").write_text(json.dumps(config))
-    with pytest.raises(ValueError, match=r"the network takes \(29,\).*needs \(87,\)"):
+    with pytest.raises(ValueError, match=r"the network takes \(29,\).*needs \(30,\)"):
         LearnedPolicy(out / "model.zip")
+    del config["paw_filter"]
     config["algorithm"] = "dqn"
     (out / "model.json").write_text(json.dumps(config))
     with pytest.raises(ValueError, match="algorithm: Input should be 'ppo', "):
@@ -159,19 +148,3 @@ def test_an_agent_with_the_soil_water_filter_sees_its_estimate_and_loads_with_it
     (out / "model.json").write_text(json.dumps(config))
     with pytest.raises(ValueError, match="paw_filter .*capacity_mm must be > 0"):
         LearnedPolicy(out / "model.zip")
-
-
-def test_hidden_columns_scale_to_zero_and_round_trip_through_the_record():
-    rng = np.random.default_rng(1)
-    obs = rng.normal(5.0, 2.0, (200, EXTENDED.size))
-    fitted = ObservationScaler.fit(obs)
-    assert "hidden" not in fitted.record()  # a policy file of a network that sees everything is as before
-    scaler = replace(fitted, hidden=("days_since_sowing", "season_days_left"))
-    day, left = EXTENDED.index("days_since_sowing"), EXTENDED.index("season_days_left")
-    scaled, plain = scaler(obs), fitted(obs)
-    assert np.all(scaled[:, [day, left]] == 0.0) and np.any(plain[:, [day, left]] != 0.0)
-    others = [i for i in range(EXTENDED.size) if i not in (day, left)]
-    np.testing.assert_array_equal(scaled[:, others], plain[:, others])
-    assert ObservationScaler.from_record(json.loads(json.dumps(scaler.record()))) == scaler
-    with pytest.raises(KeyError, match="no observation column 'days'"):
-        ObservationScaler(fitted.mean, fitted.std, ("days",))

@@ -263,8 +263,6 @@ def offline_season(policy, scenario: str, seed: int) -> dict:
     env = IrrigationEnv(scenario)
     policy.reset(seed)
     obs, info = env.reset(seed=seed)
-    if getattr(policy, "outlook", None) is not None:  # an agent with a climate outlook: its field's season
-        policy.begin_field_season(info["weather_source"], info["date"])
     total, water, days, done = 0.0, 0.0, 0, False
     while not done:
         obs, reward, terminated, truncated, info = env.step(policy.act(obs))
@@ -314,89 +312,27 @@ def family_agent_file(tmp_path_factory):
     return path
 
 
-@pytest.fixture(scope="module")
-def outlook_agent_file(tmp_path_factory, family_agent_file):
-    """The same untrained agent with a climate outlook (two more inputs)."""
-    from crop_agent_ros.policies.outlook import ClimateOutlook
-
-    path = ppo_file(tmp_path_factory.mktemp("outlook") / "model.zip", (EXTENDED.size + 2,))
-    config = json.loads(family_agent_file.with_suffix(".json").read_text()) | {"outlook": ClimateOutlook().record()}
-    path.with_suffix(".json").write_text(json.dumps(config))
-    return path
-
-
-@pytest.mark.parametrize("outlook", [False, True])
-def test_learned_agent_drives_a_family_season_like_offline(tmp_path, quota_sim, family_agent_file,
-                                                           outlook_agent_file, outlook):
-    """Driving, an agent with a climate outlook reads its field's climate and sowing date from each reset (the
-    season's generator)."""
+def test_learned_agent_drives_a_family_season_like_offline(tmp_path, quota_sim, family_agent_file):
     from crop_agent_ros.learning.agent import LearnedPolicy
 
     name, _ = quota_sim
-    policy_file = outlook_agent_file if outlook else family_agent_file
-    status, output = drive(tmp_path, name, "agent_learned", "-p", "policy:=agent", "-p", f"policy_file:={policy_file}",
-                           "-p", "seed:=8")
+    status, output = drive(tmp_path, name, "agent_learned", "-p", "policy:=agent", "-p",
+                           f"policy_file:={family_agent_file}", "-p", "seed:=8")
     assert status == 0, output
     summary = season_summary(output)
-    offline = LearnedPolicy(policy_file)
+    offline = LearnedPolicy(family_agent_file)
     expected = offline_season(offline, "benton-quota", 8)
     assert summary["policy"] == "agent" and {k: summary[k] for k in expected} == expected
-    if outlook:
-        assert offline.outlook.climates == ["benton"] and list(offline.outlook.sowing_days) == [91]  # 2000-04-01
 
 
-def test_driving_outlook_agent_on_real_weather_reads_the_sites_climate_its_scenario_names(tmp_path,
-                                                                                        outlook_agent_file):
-    """A family task on Maricopa's real seasons (a scenario file: weather of kind seasons, climate maricopa):
-    the reset names the site's climate, and the agent irrigates as offline with that climate."""
-    from crop_agent_ros.learning.agent import LearnedPolicy
-
-    scenario = tmp_path / "quota-maricopa-real.yaml"
-    scenario.write_text("base: benton-quota\nname: quota-maricopa-real\nweather:\n  kind: seasons\n  climate: maricopa\n"
-                        "  seasons:\n    - {path: simple_r_inputs/Weather/AZ000701.WTH, format: dssat, "
-                        "sowing_date: 2008-01-15}\n")
-    sim, name, _ = ros_support.start_sim(tmp_path, params={"scenario": str(scenario)})
-    try:
-        status, output = drive(tmp_path, name, "agent_real", "-p", "policy:=agent", "-p",
-                               f"policy_file:={outlook_agent_file}", "-p", "seed:=2")
-        assert status == 0, output
-        summary = season_summary(output)
-        offline = LearnedPolicy(outlook_agent_file)
-        offline.site_climate = "maricopa"
-        expected = offline_season(offline, load_scenario(scenario), 2)
-        assert offline.outlook.climates == ["maricopa"] and list(offline.outlook.sowing_days) == [14]
-        assert {k: summary[k] for k in expected} == expected
-    finally:
-        assert sim.stop() == 0, sim.output()
-
-
-def test_reacting_outlook_agent_reads_its_climate_and_sowing_date_from_parameters(tmp_path, quota_sim,
-                                                                                    outlook_agent_file):
-    """Reacting, the agent sees observations only: the field's climate and sowing date are its parameters; its
-    commands are the offline agent's, day by day. Without them, or with an unknown climate: one line, exit 2."""
-    from datetime import date
-
+def test_reacting_learned_agent_commands_the_offline_agents_amounts(tmp_path, quota_sim, family_agent_file):
+    """Reacting, the agent sees observations only (someone else steps): its commands are the offline agent's, day
+    by day."""
     from crop_agent_ros.learning.agent import LearnedPolicy
 
     name, _ = quota_sim
-    policy = ("-p", "policy:=agent", "-p", f"policy_file:={outlook_agent_file}")
-    for label, params, message in (
-            ("missing", (), "needs the field's climate:=<generator> and sowing_date:=YYYY-MM-DD"),
-            ("unknown", ("-p", "climate:=mars", "-p", "sowing_date:=2000-04-01"), "no climate 'mars'"),
-            ("baddate", ("-p", "climate:=benton", "-p", "sowing_date:=April"), "sowing_date 'April' is not a date")):
-        agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name=f"reacting_{label}",
-                            log_path=tmp_path / f"reacting_{label}.out",
-                            ros_args=["-p", f"sim_node:={name}", *policy, *params])
-        try:
-            status = agent.wait(300)
-        finally:
-            agent.stop()
-        output = agent.output()
-        assert status == 2 and "Traceback" not in output and message in one_error_line(output), (status, output)
-
-    offline = LearnedPolicy(outlook_agent_file)
-    offline.site_climate = "benton"
-    offline.begin_field_season("", date(2000, 4, 1))
+    policy = ("-p", "policy:=agent", "-p", f"policy_file:={family_agent_file}")
+    offline = LearnedPolicy(family_agent_file)
     env = IrrigationEnv("benton-quota")
     offline.reset(None)
     obs, _ = env.reset(seed=8)
@@ -405,12 +341,10 @@ def test_reacting_outlook_agent_reads_its_climate_and_sowing_date_from_parameter
         requested.append(offline.act(obs))
         obs, _, _, _, info = env.step(requested[-1])
         expected.append(info["irrigation_applied_mm"])
-    agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="reacting_outlook",
-                        log_path=tmp_path / "reacting_outlook.out",
-                        ros_args=["-p", f"sim_node:={name}", *policy, "-p", "climate:=benton",
-                                  "-p", "sowing_date:=2000-04-01"])
+    agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="reacting_learned",
+                        log_path=tmp_path / "reacting_learned.out", ros_args=["-p", f"sim_node:={name}", *policy])
     try:
-        with PrivateRos("outlook_stepper") as ros:
+        with PrivateRos("learned_stepper") as ros:
             statuses = []
             ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
                                          lambda m: statuses.append(ri.status_values(m)), ri.READER_QOS)
@@ -420,7 +354,7 @@ def test_reacting_outlook_agent_reads_its_climate_and_sowing_date_from_parameter
             for day in range(8):  # (a status of the previous season's day may still arrive: match the amount)
                 ros.spin_until(lambda: any(s["accepted"] and s["day"] == day and s["irrigation_mm"] == requested[day]
                                            for s in statuses), 30, f"the agent's command of {requested[day]} mm "
-                               f"for day {day} (another amount: its outlook differs)")
+                               f"for day {day}")
                 applied.append(ros_support.raw_step(ros, name)["irrigation_mm"])
         assert applied == expected and any(applied), (applied, agent.output())
     finally:

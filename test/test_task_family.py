@@ -284,10 +284,9 @@ def test_climates8_holds_climates6s_seasons_first_and_two_parts_sown_may_1():
 
 
 def test_climates10_holds_climates8s_seasons_first_and_two_hotter_drier_parts():
-    from crop_agent_ros.policies.outlook import scenario_climate
     _, table10 = _grown_task_tables("climates8-quota", "climates10-quota", ["benton-hot-dry", "benton-march15-hot-dry"],
                                     ["benton+6C+8DPD, seed=6", "benton+6C+8DPD, seed=7"], ["2000-04-01", "2000-03-15"])
-    assert scenario_climate(get_scenario("benton-hot-dry-generated")) == "benton+6C+8DPD"
+    assert get_scenario("benton-hot-dry-generated").weather.generated_climate == "benton+6C+8DPD"
     # drier air than the part warmed as much without drying would have: vapour pressure is WEATHER_NAMES' vap_hpa
     vap = WEATHER_NAMES.index("vap_hpa")
     assert table10.weather[8000:8050, :100, vap].mean() < 0.8 * table10.weather[4000:4050, :100, vap].mean()
@@ -321,7 +320,6 @@ def test_climates12_holds_climates10s_seasons_first_and_its_hot_dry_parts_with_a
 
 
 def test_climates_spread_holds_climates12s_seasons_first_and_6000_seasons_each_in_its_own_climate():
-    from crop_agent_ros.policies.outlook import scenario_climate
     from crop_sim_ros.weather.generator import climate_parameters, generator_of_source
     first = get_scenario("benton-spread-generated").load_seasons()[0]
     _, table = _grown_task_tables("climates12-quota", "climates-spread-quota", ["benton-spread"],
@@ -334,7 +332,7 @@ def test_climates_spread_holds_climates12s_seasons_first_and_6000_seasons_each_i
     sown = np.array([np.datetime64(d, "D") for d in table.sowing_dates[12_000:]]) - np.datetime64("2000-03-01")
     assert sown.astype(int).min() == 0 and sown.astype(int).max() == 61
     with pytest.raises(ValueError, match="each season draws its own climate"):
-        scenario_climate(get_scenario("benton-spread-generated"))
+        get_scenario("benton-spread-generated").weather.generated_climate
     values = {"name": "x", "crop": "potato", "cultivar": "Russet Burbank", "soil": "Benton USA potato",
               "sowing_date": "2000-04-01"}
     generator = {"kind": "generator", "generator": "benton"}

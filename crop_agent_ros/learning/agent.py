@@ -7,19 +7,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..policies.learned import (ACTION_KINDS, ACTION_SCALE_MM, ALGORITHMS, DAY, FLOOR_STD, RESIDUAL_SPAN_MM,
-                                AgentInterface, History, LearnedPolicy, ObservationScaler, action_to_mm,
-                                algorithm_class, residual_to_mm)
+from ..policies.learned import ACTION_SCALE_MM, AgentInterface, LearnedPolicy, ObservationScaler, action_to_mm
 
-__all__ = ["ACTION_KINDS", "ACTION_SCALE_MM", "ALGORITHMS", "DAY", "FLOOR_STD", "RESIDUAL_SPAN_MM", "AgentInterface",
-           "History", "LearnedPolicy", "ObservationScaler", "action_to_mm", "algorithm_class", "network_spaces",
-           "residual_to_mm"]
+__all__ = ["ACTION_SCALE_MM", "AgentInterface", "LearnedPolicy", "ObservationScaler", "action_to_mm", "network_spaces"]
 
 
 def network_spaces(input_size: int):
     """A one-field SB3 VecEnv that only declares the family network's spaces (``input_size`` scaled inputs in
     [-10, 10], one action in [-1, 1]): what Stable-Baselines3 needs to build a policy that never trains on an
-    environment (evolution strategies' container, an asymmetric-critic run's policy files)."""
+    environment (the container of evolution strategies' and GRPO's actor)."""
     import gymnasium as gym
     from stable_baselines3.common.vec_env import DummyVecEnv
 

@@ -89,8 +89,6 @@ def run_unit(unit: Unit, evaluation_set, terms: dict, policy) -> UnitResult:
         part = replace(evaluation_set, seasons=evaluation_set.seasons[unit.start:unit.stop])
         returns, plans = oracle_returns(part, {name: values[unit.start:unit.stop] for name, values in terms.items()})
     else:
-        if hasattr(policy, "site_climate"):  # an agent with a climate outlook, on real seasons
-            policy.site_climate = evaluation_set.site_climate
         returns, plans = run_episodes(policy, evaluation_set.scenario, evaluation_set.seasons, seed=unit.noise_seed,
                                       terms=terms).episode_return, None
     return UnitResult(returns, plans, time.perf_counter() - started)

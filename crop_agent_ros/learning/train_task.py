@@ -146,7 +146,7 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
     if settings.paw_filter:
         # the sensor's stated error is the task's PAW noise (a farmer knows the probe's specification)
         paw_filter = SoilWaterFilter(FarmFacts.of_scenario(scenario).capacity_mm, scenario.noise.paw_mm)
-    interface = AgentInterface(scaler, 1, "mm", None, paw_filter)
+    interface = AgentInterface(scaler, paw_filter)
     from stable_baselines3 import PPO
     policy_kwargs = {"net_arch": net_arch, "log_std_init": settings.log_std_init if algorithm != "es" else ES_CONTAINER_LOG_STD}
     if algorithm == "ppo":

@@ -14,8 +14,7 @@ name            what it is                                                      
 ``budget-rule`` the water-budget rule tuned for a family task                         ``task``             yes
 ``paced-rule``  the paced rule tuned for a family task (issue 33)                     ``task``             yes
 ``es``          the shipped evolution-strategies agent of a family task               ``task``             yes
-``agent``       a family agent trained by ``crop-sim train --task``                   ``policy_file``,     yes
-                                                                                      ``climate``
+``agent``       a family agent trained by ``crop-sim train --task``                   ``policy_file``      yes
 =============== ===================================================================== ==================== ====
 
 "node": the agent node (and ``crop-sim farm``, the launch file) can run it. A kind that reads ``task`` takes the
@@ -45,7 +44,6 @@ class PolicyArguments:
     constant_mm: float = 10.0  # constant: mm per day
     margin_mm: float = 4.0  # margin: mm above ET0/0.096
     task: str = ""  # budget-rule, es: the family task whose tuned rule or shipped agent
-    climate: str = ""  # agent: the site's climate (an agent with a climate outlook)
 
 
 @dataclass(frozen=True)
@@ -95,12 +93,7 @@ def _agent(arguments: PolicyArguments) -> BasePolicy:
     if not arguments.policy_file:
         raise ValueError("policy agent needs policy_file:=<model.zip of a family agent>")
     from .learned import LearnedPolicy
-    agent = LearnedPolicy(arguments.policy_file)
-    if arguments.climate:
-        from .outlook import normal_et0_mm
-        normal_et0_mm(arguments.climate)  # an unknown climate is refused at start, by name
-        agent.site_climate = arguments.climate
-    return agent
+    return LearnedPolicy(arguments.policy_file)
 
 
 # crop_agent_ros/agents/<task>/<policy name>/model.zip (+ model.json): the shipped agents (package data)

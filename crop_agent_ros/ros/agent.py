@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-from datetime import date
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 from rclpy.node import Node
@@ -44,13 +43,6 @@ PARAMETERS = {
                                        "policy agent: a family agent's model.zip (model.json beside it), required")),
     "task": ("", _descriptor(S, "policies budget-rule and es: the family task whose tuned rule or shipped agent to "
                                 "use, e.g. benton-quota ('' = the simulator's scenario parameter, read at start)")),
-    "climate": ("", _descriptor(S, "policy agent with a climate outlook: the field's climate (a fitted weather "
-                                   "generator: benton, gainesville, maricopa; delta-changed as benton+4C or "
-                                   "benton+6C+8DPDx0.3R) for seasons no generator made ('' = drive: the season's "
-                                   "generator, or for real weather the site's climate its scenario names); reacting, "
-                                   "for every season")),
-    "sowing_date": ("", _descriptor(S, "policy agent with a climate outlook, reacting: the field's sowing date, "
-                                       "YYYY-MM-DD (drive: each reset's)")),
     "constant_mm": (10.0, _descriptor(D, "policy constant: irrigation per day, mm", 0.0, 100.0)),
     "drive": (False, _descriptor(B, "run the seasons itself (reset, command, step ...) and exit")),
     "seasons": (1, _descriptor(I, "drive: number of seasons", 1, 100000)),
@@ -60,13 +52,11 @@ PARAMETERS = {
 }
 
 
-def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.0, task: str = "",
-                      climate: str = ""):
+def make_agent_policy(kind: str, policy_file: str = "", constant_mm: float = 10.0, task: str = ""):
     """The node policy ``kind`` (:data:`~crop_agent_ros.policies.NODE_POLICIES`, see
     :mod:`crop_agent_ros.policies.registry`) with the node's parameters. ValueError for an unknown kind or a
     missing parameter, FileNotFoundError for a missing policy or rule file."""
-    return build_policy(kind, PolicyArguments(policy_file=policy_file, constant_mm=constant_mm, task=task,
-                                              climate=climate), node=True)
+    return build_policy(kind, PolicyArguments(policy_file=policy_file, constant_mm=constant_mm, task=task), node=True)
 
 
 def check_observation_size(policy, size: int, where: str) -> None:
@@ -90,26 +80,13 @@ class AgentNode(Node):
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
         self.sim = "/" + p["sim_node"].strip("/")  # fully qualified: the launch file may give "ns/crop_sim"
         self.drive_mode = bool(p["drive"])
-        climate = p["climate"].strip()
-        self._climate = climate or None
         self._client: SimClient | None = None
         # a policy of a task (budget-rule, es) without one: the simulator's scenario names it (built in start(),
         # once it is read); an unknown kind is refused here, by make_agent_policy
         kind = POLICY_KINDS.get(p["policy"])
         self._policy_kind = p["policy"]
         self.policy = (None if kind is not None and kind.node and kind.reads_task and not p["task"].strip()
-                       else make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"], p["task"].strip(),
-                                              climate))
-        if getattr(self.policy, "outlook", None) is not None and not self.drive_mode:
-            # reacting, it sees observations only: the field's climate and sowing date are its parameters
-            if not climate or not p["sowing_date"].strip():
-                raise ValueError(f"{p['policy_file']}: this agent reads a climate outlook; reacting to observations it "
-                                 "needs the field's climate:=<generator> and sowing_date:=YYYY-MM-DD (or drive:=true)")
-            try:
-                sowing_date = date.fromisoformat(p["sowing_date"].strip())
-            except ValueError:
-                raise ValueError(f"sowing_date {p['sowing_date']!r} is not a date YYYY-MM-DD") from None
-            self.policy.begin_field_season("", sowing_date)  # every season of this node (no source: climate:=)
+                       else make_agent_policy(p["policy"], p["policy_file"], p["constant_mm"], p["task"].strip()))
         self.commands_sent = 0
         policy = repr(self.policy) if self.policy is not None else f"{p['policy']} (of the simulator's scenario)"
         self.get_logger().info(f"policy {policy}, simulator {self.sim}, "
@@ -194,10 +171,6 @@ class AgentNode(Node):
                 obs, info = client.reset(seed=None, weather_season=UNCHANGED)  # continue the stream
             check_observation_size(self.policy, obs.size, f"the observation of {self.sim}")  # a scenario change
             self.policy.reset(None if seed < 0 else seed + k)
-            if getattr(self.policy, "outlook", None) is not None:  # its fields' climate, from the season's weather
-                # real weather: the climate:= parameter, else the site's climate as the scenario names it
-                self.policy.site_climate = self._climate or info.get("site_climate")
-                self.policy.begin_field_season(info["weather_source"], info["date"])
             water = 0.0
             total = 0.0
             days = 0

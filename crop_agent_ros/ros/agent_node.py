@@ -29,8 +29,7 @@ tuned for the family task named by ``task``; by default the simulator's ``scenar
 (the shipped evolution-strategies agent of that task, package data under ``crop_agent_ros/agents/``; a task
 without one is refused at start, naming the tasks that have one) and
 ``agent`` (a family agent trained with ``crop-sim train --task``: ``policy_file:=.../model.zip``, its
-``model.json`` beside it; one with a climate outlook reads its field's climate and sowing date from each
-reset when driving, from its ``climate`` and ``sowing_date`` parameters when reacting). The paper's policies read either observation; the family's read only 29 values:
+``model.json`` beside it). The paper's policies read either observation; the family's read only 29 values:
 one that cannot read the simulator's observation is refused at start (drive mode, or a policy that reads the
 simulator's scenario), else at the first observation, with one line and exit status 2.
 

@@ -56,9 +56,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--policy-file", default="", help="policy ppo: a Stable-Baselines3 PPO .zip "
                         "(default: the shipped crop_agent_ros/policies/ppo_benton.zip); policy agent: a family "
                         "agent's model.zip (required)")
-    parser.add_argument("--climate", default="", help="policy agent with a climate outlook: the site's climate "
-                        "for seasons no weather generator made (benton, gainesville, maricopa; a generated season's "
-                        "is its generator's)")
     parser.add_argument("--constant-mm", type=float, default=10.0, help="policy constant: mm per day (default 10)")
     parser.add_argument("--seasons", type=int, default=1, help=f"seasons to grow (default 1, at most {MAX_SEASONS})")
     parser.add_argument("--task", default="benton-generated", help="task: a built-in scenario's name or a "
@@ -140,8 +137,6 @@ def _grow(args) -> int:
                   "-p", f"constant_mm:={args.constant_mm}", "-p", "seed:=-2", "-p", f"timeout:={AGENT_TIMEOUT_S}"]
     if args.policy_file:
         agent_args += ["-p", f"policy_file:={Path(args.policy_file).expanduser().resolve()}"]
-    if args.climate:
-        agent_args += ["-p", f"climate:={args.climate}"]
     started = time.monotonic()
     sim = agent = None
     code = 0
