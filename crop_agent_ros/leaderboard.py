@@ -4,8 +4,9 @@ Reads ``results/leaderboard.yaml`` (which evaluations appear, per task: the head
 variants, with the commands that train and evaluate their agents) and the compact summaries it names,
 ``results/summaries/<evaluation>.json`` (:mod:`crop_agent_ros.learning.summary`, written by
 ``crop-sim evaluate --task``). Writes ``docs/leaderboard.md``: per task and evaluation set, the oracle's return,
-the rule's regret and every agent's regret with its 95 % interval, ratio to the rule, paired wins, final / 1 %
-checkpoint ratio and training cost, then each evaluation's commands. Between the lines
+the rule's regret (the set's strongest rule, named, where the summary records one: :func:`reference_rule`) and
+every agent's regret with its 95 % interval, ratio to that rule, paired wins, final / 1 % checkpoint ratio and
+training cost, then each evaluation's commands. Between the lines
 ``<!-- leaderboard:start -->`` and ``<!-- leaderboard:end -->`` of ``README.md`` (if it has them) it writes the
 headline rows the configuration names (``readme_sets``). The output depends only on those files: no dates.
 
@@ -206,6 +207,15 @@ def _seeds(seeds: list[int]) -> str:
     return "S = " + ", ".join(str(seed) for seed in seeds)
 
 
+def reference_rule(evaluation_set: dict) -> dict:
+    """The rule row an evaluation set's agent ratios are against: the set's strongest rule where its summary
+    records one (``strongest_rule``, evaluations with the paced rule beside the budget rule), else its (only)
+    rule row."""
+    rules = [row for row in evaluation_set["rows"] if row["kind"] == "rule"]
+    named = evaluation_set.get("strongest_rule")
+    return next((row for row in rules if row["policy"] == named), rules[0])
+
+
 def _rule_names(summaries: dict[str, dict]) -> str:
     return ", ".join(f"`{name}`" for name in sorted({s["rule"]["name"] for s in summaries.values()}))
 
@@ -234,13 +244,13 @@ def _set_table(task_name: str, set_name: str, entries) -> list[str]:
         if evaluation_set is None:
             continue
         described = described or evaluation_set
-        rule = next(row for row in evaluation_set["rows"] if row["kind"] == "rule")
+        rule = reference_rule(evaluation_set)
         for row in evaluation_set["rows"]:
             if row["kind"] != "agent":
                 continue
             final = row.get("final_over_1pct")
             cells = [f"**{evaluation.summary}**" if role == "headline" else evaluation.summary, row["policy"],
-                     _usd(evaluation_set["oracle_return_usd_ha"]), _regret(rule), _regret(row),
+                     _usd(evaluation_set["oracle_return_usd_ha"]), rule["policy"], _regret(rule), _regret(row),
                      f"{row['regret_pct_of_reference']:.2f} %", _ratio(row["ratio_to_rule"], row["ratio_to_rule_ci"]),
                      f"{100 * row['paired_wins']:.0f} %",
                      _ratio(final, row.get("final_over_1pct_ci")) if final is not None else "-",
@@ -250,9 +260,9 @@ def _set_table(task_name: str, set_name: str, entries) -> list[str]:
                      if s["name"] == set_name})
     shape = "; ".join(f"{seasons} seasons x {noise} noise seeds" for seasons, noise in shapes)
     lines = [f"### {task_name}, {set_name}", "", f"{described['role']}; {shape}.", "",
-             "| evaluation | agent | oracle return | rule regret [95 % CI] | regret [95 % CI] | regret % of oracle "
-             "| ratio to rule [95 % CI] | paired wins | final / 1 % [95 % CI] | training per seed |",
-             "|---|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+             "| evaluation | agent | oracle return | rule | rule regret [95 % CI] | regret [95 % CI] | regret % of "
+             "oracle | ratio to rule [95 % CI] | paired wins | final / 1 % [95 % CI] | training per seed |",
+             "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---|"]
     # the headline first as evaluated; the variants by regret, best first
     for _, cells in headline_rows + sorted(variant_rows, key=lambda item: (item[0], item[1][0], item[1][1])):
         lines.append("| " + " | ".join(cells) + " |")
@@ -276,9 +286,12 @@ def page(config, summaries: dict[str, dict]) -> str:
     lines = [
         "# Leaderboard", "",
         f"> **Which rule the ratios are against.** Every ratio on this page is an agent's regret over the regret of "
-        f"the project's own tuned water-budget rule ({_rule_names(summaries)}, `crop-sim tune-rule`, one per task "
-        f"in `crop_agent_ros/policies/family_<task>.json`), paired on the same seasons and noise. "
-        f"{config.stronger_rule.strip()}",
+        f"the rule in the `rule` column, paired on the same seasons and noise: where an evaluation scored the paced "
+        f"rule (`paced-rule`, issue 33, `crop_agent_ros/policies/family_<task>-paced.json`) beside the project's "
+        f"tuned water-budget rule ({_rule_names(summaries)}, `crop_agent_ros/policies/family_<task>.json`), the "
+        f"set's strongest of the two (the lower regret on that set; the other is a weaker baseline); in older "
+        f"evaluations, the water-budget rule alone. Both are tuned by `crop-sim tune-rule` on generated training "
+        f"seasons only. {config.stronger_rule.strip()}",
         "",
         f"Generated by `crop-sim leaderboard` from `{SUMMARIES}/*.json` (one per evaluation, listed in `{CONFIG}`); "
         "`crop-sim leaderboard --check` fails when this page is out of date. Do not edit it by hand.",
@@ -310,20 +323,22 @@ def readme_block(config, summaries: dict[str, dict]) -> str:
     """The README's excerpt: per task and set named in ``readme_sets``, the headline's best agent."""
     lines = [
         "Regret in USD/ha (the hindsight oracle's return minus the policy's) with 95 % bootstrap intervals; ratio: "
-        "agent regret / the regret of our tuned water-budget rule. A stronger rule exists (issue 33, "
-        "\"baselines\"): see the box at the top of [the leaderboard](docs/leaderboard.md), which has every result.",
+        "agent regret / the regret of the rule named (the set's strongest rule where the evaluation scored the paced "
+        "rule of issue 33, else our tuned water-budget rule): see the box at the top of "
+        "[the leaderboard](docs/leaderboard.md), which has every result.",
         "",
-        "| task | set | rule regret | best agent | agent regret [95 % CI] | ratio to rule [95 % CI] |",
-        "|---|---|---:|---|---:|---:|",
+        "| task | set | rule | rule regret | best agent | agent regret [95 % CI] | ratio to rule [95 % CI] |",
+        "|---|---|---|---:|---|---:|---:|",
     ]
     for task in config.tasks:
         summary = summaries[task.headline.summary]
         for set_name in task.readme_sets:
             evaluation_set = next(s for s in summary["sets"] if s["name"] == set_name)
-            rule = next(row for row in evaluation_set["rows"] if row["kind"] == "rule")
+            rule = reference_rule(evaluation_set)
             best = min((row for row in evaluation_set["rows"] if row["kind"] == "agent"),
                        key=lambda row: (row["regret_usd_ha"], row["policy"]))
-            lines.append(f"| {task.task} | {set_name} | {_usd(rule['regret_usd_ha'])} | {best['policy']} | "
+            lines.append(f"| {task.task} | {set_name} | {rule['policy']} | {_usd(rule['regret_usd_ha'])} | "
+                         f"{best['policy']} | "
                          f"{_regret(best)} | {_ratio(best['ratio_to_rule'], best['ratio_to_rule_ci'])} |")
     return "\n".join(lines) + "\n"
 

@@ -434,3 +434,26 @@ def test_tune_rule_refuses_bad_seasons_with_one_line(arguments, message, capsys)
     assert main(["tune-rule", "--task", "climates-quota", *arguments]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(message), err
+
+
+def test_ratios_are_against_the_strongest_rule_of_the_set():
+    """Two rule rows: the agent's ratio and paired wins are against the one with the lower regret on the set,
+    every row names it, and the other rule's note calls it a weaker baseline."""
+    rng = np.random.default_rng(9)
+    reference = rng.uniform(9000, 11000, (6, 2))
+    weak = reference - rng.uniform(400, 600, (6, 2))
+    strong = reference - rng.uniform(100, 200, (6, 2))
+    agent = reference[None] - rng.uniform(150, 250, (2, 6, 2))
+    for rules in ((weak, strong), (strong, weak)):   # the order of the rows does not matter
+        evaluated = [et.Evaluated(name, "rule", returns[None]) for name, returns in zip(("first", "second"), rules)]
+        evaluated.append(et.Evaluated("agent", "agent", agent, "agent", (100, 100), (0, 1)))
+        boot = et.Resamples.draw(3, 0, 6, 2, {"agent": 2}, 200)
+        rows = {r["policy"]: r for r in et.compare(evaluated, reference, boot, with_oracle=True)}
+        strongest = "second" if rules[1] is strong else "first"
+        weaker = "first" if strongest == "second" else "second"
+        assert {r["reference_rule"] for r in rows.values()} == {strongest}
+        assert rows["agent"]["ratio_to_rule"] == pytest.approx((reference[None] - agent).mean()
+                                                               / (reference - strong).mean())
+        assert rows["agent"]["paired_wins"] == pytest.approx(np.mean(agent > strong[None]))
+        assert "the strongest rule of this set" in rows[strongest]["note"]
+        assert "a weaker baseline" in rows[weaker]["note"]

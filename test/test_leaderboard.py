@@ -160,13 +160,13 @@ def test_the_command_writes_the_page_and_the_readme_block_and_then_checks_clean(
     page = (root / "docs" / "leaderboard.md").read_text()
     assert page.startswith("# Leaderboard\n\n> **Which rule the ratios are against.**")
     assert "`budget-rule`" in page and "A stronger rule exists (issue 33)." in page
-    assert ("| **benton-quota-es** | es | 16,160 | 424 [343, 518] | 186 [103, 274] | 1.15 % | 0.44 [0.23, 0.67] "
+    assert ("| **benton-quota-es** | es | 16,160 | budget-rule | 424 [343, 518] | 186 [103, 274] | 1.15 % | 0.44 [0.23, 0.67] "
             "| 98 % | 0.42 [0.20, 0.79] | 170 M steps, 9 min |") in page
     assert "`crop-sim train --task benton-quota --algorithm es --seed S`, S = 0, 1" in page
     readme = (root / "README.md").read_text()
     assert readme.startswith(f"# Farm\n\n{lb.START}\n") and readme.endswith(f"{lb.END}\n\nmore text\n")
     assert "old rows" not in readme
-    assert "| benton-quota | heldout-real | 424 | es | 186 [103, 274] | 0.44 [0.23, 0.67] |" in readme
+    assert "| benton-quota | heldout-real | budget-rule | 424 | es | 186 [103, 274] | 0.44 [0.23, 0.67] |" in readme
 
 
 @pytest.mark.parametrize("tamper, named", [
@@ -311,3 +311,28 @@ def test_check_passes_on_a_copy_of_the_tree_and_fails_once_a_summary_changes(tmp
     capsys.readouterr()
     assert leaderboard(tmp_path, "--check") == 1
     assert capsys.readouterr().err == "crop-sim leaderboard: docs/leaderboard.md out of date; run crop-sim leaderboard\n"
+
+
+def test_ratios_are_against_the_strongest_rule_the_summary_names():
+    """A summary that scored two rules names the set's strongest one: the page and the README show that rule's
+    regret (and name it), not the first rule row; a summary without the name shows its only rule."""
+    evaluation_set = {"rows": [
+        {"policy": "budget-rule", "kind": "rule", "regret_usd_ha": 424.0, "regret_ci_usd_ha": [343.0, 518.0]},
+        {"policy": "paced-rule", "kind": "rule", "regret_usd_ha": 135.0, "regret_ci_usd_ha": [82.0, 198.0]}],
+        "strongest_rule": "paced-rule"}
+    assert lb.reference_rule(evaluation_set)["policy"] == "paced-rule"
+    assert lb.reference_rule({"rows": evaluation_set["rows"][:1]})["policy"] == "budget-rule"
+
+
+def test_the_summary_records_the_strongest_rule():
+    from crop_agent_ros.learning.summary import _set_summary
+    rows = [{"policy": name, "kind": "rule", "reference_rule": "paced-rule", "noise_seeds": 5, "return_usd_ha": 1.0,
+             "regret_usd_ha": 1.0, "regret_ci_low": 0.0, "regret_ci_high": 2.0, "regret_pct_of_reference": 0.1}
+            for name in ("budget-rule", "paced-rule")]
+    summarised = _set_summary({"name": "far-benton", "role": "far", "scenario": "benton-quota", "seasons": [0],
+                               "terms_seed": 1, "reference": "oracle", "rows": rows})
+    assert summarised["strongest_rule"] == "paced-rule"
+    for row in rows:
+        row.pop("reference_rule")
+    assert "strongest_rule" not in _set_summary({"name": "far-benton", "role": "far", "scenario": "benton-quota",
+                                                 "seasons": [0], "terms_seed": 1, "reference": "oracle", "rows": rows})

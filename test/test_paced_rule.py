@@ -169,6 +169,7 @@ def test_unknown_parameter_is_refused():
     (["--rule", "paced-rule", "--seasons", "5..1"], "crop-sim tune-rule: --seasons: '5..1' names no season"),
     (["--rule", "paced-rule", "--candidates", "0"], "crop-sim tune-rule: --candidates must be in 1..10000"),
     (["--rule", "paced-rule", "--seed", "-1"], "crop-sim tune-rule: --seed"),
+    (["--rule", "paced-rule", "--term-draws", "0"], "crop-sim tune-rule: --term-draws must be in 1..20"),
 ])
 def test_tuner_refuses_bad_input_in_one_line(arguments, message, capsys):
     from crop_agent_ros.cli import main
@@ -195,3 +196,53 @@ def test_registry_builds_it_by_name():
     assert isinstance(build_policy("paced-rule", PolicyArguments(task=TASK)), PacedRule)
     with pytest.raises(ValueError, match="paced-rule needs a family task"):
         build_policy("paced-rule")
+
+
+def test_late_reserve_waters_the_late_canopy_and_paces_for_it(scenario):
+    """``late_factor``: after the window the rule still aims at a level (the late canopy), and the water it keeps
+    for it is counted in the demand ahead, so the window's share of a tight quota falls; at 0 nothing is kept."""
+    from crop_agent_ros.policies.paced_rule import _cover_integral
+    facts = PacedFacts.of_scenario(scenario)
+    # the antiderivative of SIMPLE's senescence cover: its derivative is the cover
+    x, c = np.array([1500.0, 1900.0, 2200.0]), 1900.0
+    slope = (_cover_integral(x + 0.5, c) - _cover_integral(x - 0.5, c)) / 1.0
+    assert np.allclose(slope, 1.0 / (1.0 + np.exp(0.01 * (x - c))), atol=1e-6)
+    seasons = np.arange(4)
+    terms = draw_terms(scenario, seasons, 0)
+    terms["quota_mm"] = np.full(len(seasons), 600.0)
+    window = {"stop_offset_degc_d": -400.0, "narrow_stop_degc_d": 0.0, "pace": 1.0}
+    late_water = {}
+    for late in (0.0, 1.0):
+        recorder = Recorder(PacedRule(facts, {**window, "late_factor": late}))
+        run_episodes(recorder, scenario, seasons, seed=0, terms=terms)
+        tt = np.stack([o[:, EXTENDED.index("thermal_time_degc_d")] for o in recorder.observations])
+        actions = np.stack(recorder.actions)
+        stop = facts.tsum_degc_d - facts.i50b_degc_d - 400.0
+        late_water[late] = float(actions[tt > stop + 50.0].sum())
+    assert late_water[0.0] == 0.0 < late_water[1.0]
+
+
+def test_late_reserve_is_counted_in_the_pacing(scenario):
+    """With a tight quota, water kept for the late canopy (``late_factor`` > 0) is water the window does not get."""
+    facts = PacedFacts.of_scenario(scenario)
+    seasons = np.arange(4)
+    terms = draw_terms(scenario, seasons, 0)
+    terms["quota_mm"] = np.full(len(seasons), 200.0)
+    window = {"stop_offset_degc_d": -400.0, "narrow_stop_degc_d": 0.0, "narrow_degc_d": 0.0, "pace": 1.0}
+    stop = facts.tsum_degc_d - facts.i50b_degc_d - 400.0
+    in_window = {}
+    for late in (0.0, 1.0):
+        recorder = Recorder(PacedRule(facts, {**window, "late_factor": late, "senescence_weight": 0.0}))
+        run_episodes(recorder, scenario, seasons, seed=0, terms=terms)
+        tt = np.stack([o[:, EXTENDED.index("thermal_time_degc_d")] for o in recorder.observations])
+        in_window[late] = float(np.stack(recorder.actions)[tt <= stop].sum())
+    assert in_window[1.0] < in_window[0.0]
+
+
+def test_tuner_meets_each_season_with_several_term_draws(scenario):
+    """--term-draws K: the same training seasons, each with K drawn terms; the file records the seasons once."""
+    result = family_tuning.tune_rule(scenario, np.arange(2), candidates=2, rounds=0, rule="paced-rule",
+                                     log=lambda message: None, term_draws=3)
+    assert result["seasons"] == [0, 1] and result["term_draws"] == 3
+    assert "term_draws" not in family_tuning.tune_rule(scenario, np.arange(2), candidates=2, rounds=0,
+                                                       rule="paced-rule", log=lambda message: None)

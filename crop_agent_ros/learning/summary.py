@@ -87,9 +87,17 @@ def _set_summary(evaluation_set: dict) -> dict:
         "seasons": len(evaluation_set["seasons"]), "noise_seeds": rows[0]["noise_seeds"],
         "terms_seed": evaluation_set["terms_seed"], "reference": evaluation_set["reference"],
         "oracle_return_usd_ha": None if oracle is None else _rounded(oracle["return_usd_ha"], USD_DIGITS),
+        **_strongest_rule(rows),
         # the 1 % checkpoint's own row is left out: its regret enters as the agent row's final / 1 % ratio
         "rows": [_policy_row(row) for row in rows if row["kind"] in ("rule", "agent")],
     }
+
+
+def _strongest_rule(rows: list[dict]) -> dict:
+    """``strongest_rule``: the rule the agents' ratios and paired wins are against (the set's rule row with the
+    lower regret; recorded by evaluations that had more than one rule row, absent before)."""
+    names = {row.get("reference_rule") for row in rows if row.get("reference_rule")}
+    return {"strongest_rule": names.pop()} if len(names) == 1 else {}
 
 
 def seed_command(command: str, seed: int) -> str:
@@ -155,6 +163,10 @@ def summary(table: dict, run_summaries: Mapping[str, dict] | None = None) -> dic
         "rule": {"name": rule["name"], "file": Path(rule["file"]).name, "tuned_now": rule["tuned_now"],
                  "parameters": {key: _significant(value) for key, value in rule.items()
                                 if key not in ("name", "file", "tuned_now")}},
+        **({"paced_rule": {"name": table["paced_rule"]["name"], "file": Path(table["paced_rule"]["file"]).name,
+                           "parameters": {key: _significant(value) for key, value in table["paced_rule"].items()
+                                          if key not in ("name", "file", "tuned_now")}}}
+           if isinstance(table.get("paced_rule"), dict) and "file" in table["paced_rule"] else {}),
         "sets": [_set_summary(evaluation_set) for evaluation_set in table["sets"]],
         "training": _training(table, run_summaries),
         "evaluation_wall_s": _rounded(table["wall_s"]["total_s"], 1),

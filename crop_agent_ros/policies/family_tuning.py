@@ -2,7 +2,7 @@
 seasons only (never the held-out ones), and write ``family_<task>.json`` beside the rules.
 
     crop-sim tune-rule --task benton-quota [--rule budget-rule|paced-rule] [--seasons 0..199] [--seed 0]
-        [--candidates 192] [--rounds 4]
+        [--candidates 192] [--rounds 4] [--term-draws 1]
 
 Two rule families are tuned the same way (:data:`RULES`): the water-budget rule (``budget-rule``, written to
 ``family_<task>.json``) and the paced rule (``paced-rule``, :mod:`crop_agent_ros.policies.paced_rule`, written
@@ -55,6 +55,7 @@ PACED_SEARCH_BOX = {
     "narrow_degc_d": (0.0, 1500.0),
     "narrow_stop_degc_d": (0.0, 1500.0),
     "pace": (0.5, 3.0),
+    "late_factor": (0.0, 1.5),
     "heat_weight": (0.0, 1.0),
     "senescence_weight": (0.0, 2.0),
     "skip_rain_mm": (0.0, 30.0),
@@ -164,13 +165,15 @@ def _perturb(rng: np.random.Generator, best: list[dict], n: int, scale: float, b
 
 
 def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 192, rounds: int = 4,
-              names: tuple[str, ...] | None = None, log=print, rule: str = "budget-rule") -> dict:
+              names: tuple[str, ...] | None = None, log=print, rule: str = "budget-rule", term_draws: int = 1) -> dict:
     """The best parameters of ``rule`` (a :data:`RULES` name) on ``seasons`` of ``scenario`` (see the module
-    docstring), with its score."""
+    docstring), with its score. ``term_draws`` K > 1: every season is met K times, each with its own draw of
+    the terms (quota, prices): the same seasons, K times the terms (less fitting to one quota per season)."""
     family = _family(rule)
     names = family.names if names is None else names
     facts = family.facts_of(scenario)
     rng = np.random.default_rng(seed)
+    unique_seasons, seasons = seasons, np.tile(seasons, term_draws)
     terms = draw_terms(scenario, seasons, seed)
     defaults = {k: np.array([getattr(family.defaults, k)]) for k in names}
     pool = _random_candidates(rng, candidates - 1, names, family.box, family.never)
@@ -191,7 +194,8 @@ def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 19
             pool = _perturb(rng, best, candidates, scale, family.box, family.never)
             scale /= 2.0
     return {**({} if rule == "budget-rule" else {"rule": rule}), "parameters": best[0], "mean_return": history[-1],
-            "history": history, "seasons": [int(s) for s in seasons], "seed": seed, "scenario": scenario.name,
+            "history": history, "seasons": [int(s) for s in unique_seasons], "seed": seed,
+            **({"term_draws": term_draws} if term_draws > 1 else {}), "scenario": scenario.name,
             "facts": family.facts_record(facts)}
 
 
@@ -255,6 +259,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the search, the terms and the noise")
     parser.add_argument("--candidates", type=int, default=128, help="candidates per round (1..10000)")
     parser.add_argument("--rounds", type=int, default=4, help="local-search rounds after the random one (0..50)")
+    parser.add_argument("--term-draws", type=int, default=1,
+                        help="draws of the terms (quota, prices) per training season (1..20): the same seasons, "
+                             "each met with K quotas")
 
 
 def run(args) -> int:
@@ -269,10 +276,13 @@ def run(args) -> int:
     check_range("--seed", args.seed, 0, MAX_SEED)
     if not (1 <= args.candidates <= 10_000 and 0 <= args.rounds <= 50):
         raise UsageError("--candidates must be in 1..10000 and --rounds in 0..50")
+    term_draws = getattr(args, "term_draws", 1)
+    if not 1 <= term_draws <= 20:
+        raise UsageError("--term-draws must be in 1..20")
     rule = getattr(args, "rule", "budget-rule")
     if rule not in RULES:
         raise UsageError(f"--rule: unknown rule {rule!r}; known: {', '.join(RULES)}")
-    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, rule=rule)
+    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, rule=rule, term_draws=term_draws)
     print(f"tuned {args.task} {rule}: {result['parameters']} mean return {result['mean_return']:.2f}; "
           f"wrote {write_tuned(args.task, result, rule)}")
     return 0

@@ -15,12 +15,19 @@ soil-water sensor's published error (the scenario's ``noise.paw_mm``). Each day 
 4. **Paces the quota by the demand still ahead**: demand = net ET per unit of thermal time so far
    (sum(ET0 - rain) / TT, at least a quarter of sum(ET0) / TT) x the thermal time left in the window; supply =
    quota left + the estimated soil water; ratio = supply / demand.
-5. **Aims at a level**: in the window ``level_factor`` x min(1, ``pace`` x ratio) x ET0 / 0.096 + ``margin_mm``
+5. **Reserves water for the late canopy**: after the window (until maturity) the crop still grows in
+   proportion to its canopy cover, and late stress brings harvest forward. The rule aims there at
+   ``late_factor`` x the estimated canopy cover x ET0 / 0.096 (cover from SIMPLE's senescence curve at the
+   estimated I50B, 1 / (1 + exp(0.01 (TT - (Tsum - I50B))))), and counts that water in the demand ahead
+   (``late_factor`` x rate x the integral of the cover over the late thermal time still ahead), so that the
+   quota is paced to leave it.
+6. **Aims at a level**: in the window ``level_factor`` x min(1, ``pace`` x ratio) x ET0 / 0.096 + ``margin_mm``
    (SIMPLE's crop is unstressed while PAW >= ET0 / 0.096); before the window ``early_factor`` x ET0 / 0.096;
-   after it nothing. On a heat day (f_heat < 1 from today's TMAX) growth is already limited to f_heat, and water
+   after it the late level of point 5 (x min(1, ``pace`` x ratio)). On a heat day (f_heat < 1 from today's
+   TMAX) growth is already limited to f_heat, and water
    stress down to f_water = f_heat costs neither growth nor canopy life: the level falls by ``heat_weight`` x
    that free share.
-6. **Skips forecast rain**: nothing when tomorrow's forecast rain exceeds ``skip_rain_mm``; today's rain counts.
+7. **Skips forecast rain**: nothing when tomorrow's forecast rain exceeds ``skip_rain_mm``; today's rain counts.
 
 It irrigates the level minus the estimated water and today's rain, within the pump's capacity and the quota left.
 
@@ -37,6 +44,7 @@ stop_offset_degc_d    degC d     window stop after Tsum - I50B (TT of half senes
 narrow_degc_d         degC d     how far the start moves later when the quota covers none of the demand
 narrow_stop_degc_d    degC d     how far the stop moves earlier when the quota covers none of the demand
 pace                  1          supply / demand ratio multiplier (large: the quota is not paced)
+late_factor           1          share of the no-stress level x canopy cover kept after the window (0: none)
 heat_weight           1          share of a heat day's free water stress taken (0: none, 1: all)
 senescence_weight     1          weight of the estimated I50B increments (0: stress ignored)
 skip_rain_mm          mm         no irrigation when tomorrow's forecast rain exceeds it
@@ -44,7 +52,8 @@ skip_rain_mm          mm         no irrigation when tomorrow's forecast rain exc
 
 The tuned parameters of each task live in ``family_<task>-paced.json`` beside this module, written by
 ``crop-sim tune-rule --task TASK --rule paced-rule`` (:mod:`crop_agent_ros.policies.family_tuning`) from
-generated training seasons only.
+generated training seasons only; the shipped benton-quota, benton-sensing and climates-quota files with
+``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds).
 """
 
 from __future__ import annotations
@@ -62,6 +71,12 @@ from .family import SoilWaterFilter
 _COL = {name: EXTENDED.index(name) for name in EXTENDED.names}
 # The smallest thermal time (degC d) the net-ET rate is estimated over (the first days say little).
 MIN_RATE_TT_DEGC_D = 60.0
+
+
+def _cover_integral(tt, senescence_tt):
+    """An antiderivative in TT of SIMPLE's senescence cover 1 / (1 + exp(0.01 (TT - senescence_tt))) (degC d)."""
+    z = 0.01 * (np.asarray(tt, dtype=float) - senescence_tt)
+    return tt - 100.0 * np.logaddexp(0.0, z)
 
 
 @dataclass(frozen=True)
@@ -125,6 +140,7 @@ class PacedParameters:
     narrow_degc_d: float = 200.0
     narrow_stop_degc_d: float = 200.0
     pace: float = 1.0
+    late_factor: float = 0.0
     heat_weight: float = 1.0
     senescence_weight: float = 1.0
     skip_rain_mm: float = 10.0
@@ -214,7 +230,12 @@ class PacedRule(BasePolicy):
         tightness = np.clip(np.where(wide > 0, supply / np.maximum(wide, 1e-9), 1.0), 0.0, 1.0)
         start = start + p["narrow_degc_d"] * (1.0 - tightness)
         stop = stop - p["narrow_stop_degc_d"] * (1.0 - tightness)
-        ahead = demand(start, stop)
+        # The late canopy: cover after the window, and its demand ahead (integral of the cover over TT).
+        senescence_tt = f.tsum_degc_d - m["i50b"]
+        late_from = np.maximum(tt, stop)
+        late_ahead = rate * np.maximum(_cover_integral(f.tsum_degc_d, senescence_tt)
+                                       - _cover_integral(late_from, senescence_tt), 0.0)
+        ahead = demand(start, stop) + p["late_factor"] * np.where(late_from < f.tsum_degc_d, late_ahead, 0.0)
         ratio = np.where(ahead > 0, supply / np.maximum(ahead, 1e-9), np.inf)
         share = np.minimum(1.0, p["pace"] * ratio)
         # A heat day: growth is limited to f_heat already; f_water down to f_heat is free (I50B takes the max).
@@ -223,8 +244,10 @@ class PacedRule(BasePolicy):
         heat_share = 1.0 - p["heat_weight"] * free
         unstressed = et0 / WATER_UPTAKE_COEFFICIENT
         in_window = (tt >= start) & (tt <= stop)
+        cover = 1.0 / (1.0 + np.exp(np.clip(0.01 * (tt - senescence_tt), -50.0, 50.0)))
+        late = np.where(tt < f.tsum_degc_d, p["late_factor"] * share * cover * heat_share * unstressed, 0.0)
         level = np.where(in_window, p["level_factor"] * share * heat_share * unstressed + p["margin_mm"],
-                         np.where(tt < start, p["early_factor"] * heat_share * unstressed, 0.0))
+                         np.where(tt < start, p["early_factor"] * heat_share * unstressed, late))
         amount = np.maximum(np.minimum(level, f.capacity_mm) - paw - rain, 0.0)
         amount = np.where(obs[:, _COL["forecast_rain_mm"]] > p["skip_rain_mm"], 0.0, amount)
         amount = np.minimum(np.minimum(amount, obs[:, _COL["capacity_mm_per_day"]]), quota)
