@@ -81,8 +81,9 @@ def test_a_two_node_cluster_gives_the_same_tables_bit_for_bit(local_and_cluster)
 @pytest.mark.slow
 def test_the_table_records_where_each_unit_ran(local_and_cluster):
     local, cluster, port, _ = local_and_cluster
-    # heldout-real: one oracle unit (5 seasons <= 10), and the rule + 2 runs x (final, 1 %) per noise seed
-    units = 1 + (1 + 2 * len(AGENT_RUNS)) * NOISE_SEEDS
+    # heldout-real: one oracle unit (5 seasons <= 10), and the two rules (budget, paced) + 2 runs x (final, 1 %)
+    # per noise seed
+    units = 1 + (2 + 2 * len(AGENT_RUNS)) * NOISE_SEEDS
     here, there = read_json(local)["execution"], read_json(cluster)["execution"]
     assert here["units"] == there["units"] == len(there["unit_log"]) == units
     assert here["ray_nodes"] == [] and here["units_per_node"] == {"this process": units}
@@ -94,6 +95,7 @@ def test_the_table_records_where_each_unit_ran(local_and_cluster):
     logged = [(u["policy"], u["noise_seed"]) for u in there["unit_log"]]
     assert logged == [(u["policy"], u["noise_seed"]) for u in here["unit_log"]]
     assert logged.count(("oracle", 0)) == 1 and logged.count(("budget-rule", 1)) == 1
+    assert logged.count(("paced-rule", 1)) == 1
 
 
 @pytest.mark.slow
@@ -110,7 +112,7 @@ def test_a_private_local_instance_gives_the_same_returns(local_and_cluster, agen
                                                   if name != et.ORACLE}
     assert saved["execution"]["address"] == "local" and len(saved["execution"]["ray_nodes"]) == 1
     assert saved["execution"]["units_per_node"] == {saved["execution"]["ray_nodes"][0]["node"]:
-                                                   (1 + 2 * len(AGENT_RUNS)) * NOISE_SEEDS}
+                                                   (2 + 2 * len(AGENT_RUNS)) * NOISE_SEEDS}
 
 
 @pytest.mark.slow
