@@ -4,7 +4,7 @@ A command raises :class:`UsageError` for such a mistake; ``crop-sim`` prints ``c
 and exits with EXIT_USAGE, without a traceback. Tracebacks are kept for our own bugs, so only the code that
 reads the user's input converts its errors, with :func:`user_input`:
 
-    with user_input("--scenario"):
+    with user_input("--task"):
         scenario = load_scenario(path)     # ValueError, KeyError (an unknown name), OSError -> UsageError
 """
 

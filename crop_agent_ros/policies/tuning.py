@@ -1,6 +1,6 @@
 """Tune the hand-made rules by grid search on generated training seasons (never the held-out ones).
 
-    python -m crop_agent_ros.policies.tuning [--scenario benton-generated] [--seasons 200] [--seed 0]
+    python -m crop_agent_ros.policies.tuning [--task benton-generated] [--seasons 200] [--seed 0]
 
 writes ``best_constant_benton.json``, ``refill_benton.json`` and ``demand_margin_benton.json`` (the fixed
 margin of the demand-aware refill, the centre of the PPO policy's margin action) beside the rules. Every grid point runs on
@@ -93,12 +93,12 @@ def tune_refill(scenario, seasons, seed: int = 0) -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scenario", default="benton-generated")
+    parser.add_argument("--task", default="benton-generated", help="a task with generated weather")
     parser.add_argument("--seasons", type=int, default=200, help="first N seasons of the scenario's pool")
     parser.add_argument("--seed", type=int, default=0, help="observation-noise seed")
     parser.add_argument("--out-dir", type=Path, default=REFILL_FILE.parent)
     args = parser.parse_args(argv)
-    scenario = scenario_of(args.scenario)
+    scenario = scenario_of(args.task)
     if scenario.name != "benton-generated" and "generat" not in scenario.name:
         print(f"warning: tuning on {scenario.name}, not on generated seasons")
     seasons = np.arange(args.seasons)
