@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +23,7 @@ import crop_sim_ros.task.scenario as scenario_module  # noqa: E402
 import crop_sim_ros.task.vector_env as vector_module  # noqa: E402
 from crop_sim_ros.task import core, gym_id, scenario_names  # noqa: E402
 from crop_sim_ros.task.jax_env import EnvParams, JaxIrrigationEnv, make_jax_env, params_of  # noqa: E402
+from scenario_pools import small_pool_loader  # noqa: E402
 
 NAMES = scenario_names()
 POOL_SEASONS = 3     # generated seasons per weather source (the registered pools hold 1,000+)
@@ -42,15 +42,8 @@ def x64():
 
 @pytest.fixture(scope="module")
 def small_pools():
-    """Every scenario with its generated pools cut to POOL_SEASONS seasons (as test_task_ids.py does)."""
-    load = scenario_module.get_scenario
-
-    def get_small(name, data_dir=None):
-        scenario = load(name, data_dir)
-        if scenario.weather.kind != "generator":
-            return scenario
-        return replace(scenario, weather=replace(scenario.weather, n_seasons=min(scenario.weather.n_seasons,
-                                                                                    POOL_SEASONS)))
+    """Every scenario with its generated pools cut to POOL_SEASONS seasons."""
+    get_small = small_pool_loader(POOL_SEASONS)
 
     with pytest.MonkeyPatch.context() as patch:
         for target in (scenario_module, env_module, vector_module):

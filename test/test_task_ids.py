@@ -14,6 +14,7 @@ import crop_sim_ros.task.env as env_module
 import crop_sim_ros.task.scenario as scenario_module
 from crop_sim_ros.task import IrrigationVectorEnv, get_scenario, gym_id, scenario_names, task_name
 from crop_sim_ros.weather.generator import climate_parameters, generate_seasons
+from scenario_pools import small_pool_loader
 
 NAMES = scenario_names()
 POOL_SEASONS = 3  # generated seasons per weather source in the episode tests (the registered pools hold 1,000+)
@@ -55,18 +56,8 @@ def test_every_built_in_task_is_registered_with_its_longest_season_as_max_episod
 
 @pytest.fixture
 def small_pools(monkeypatch):
-    """Every scenario the environments load, with its generated pools cut to POOL_SEASONS seasons (the same
-    task, season length and weather source): making all 48 environments with their 1,000-6,000-season pools
-    would take minutes."""
-    load = scenario_module.get_scenario
-
-    def get_small(name, data_dir=None):
-        scenario = load(name, data_dir)
-        if scenario.weather.kind != "generator":
-            return scenario
-        return replace(scenario, weather=replace(scenario.weather, n_seasons=min(scenario.weather.n_seasons,
-                                                                                    POOL_SEASONS)))
-
+    """Every scenario the environments load, with its generated pools cut to POOL_SEASONS seasons."""
+    get_small = small_pool_loader(POOL_SEASONS)
     monkeypatch.setattr(scenario_module, "get_scenario", get_small)  # a mixture's parts
     monkeypatch.setattr(env_module, "get_scenario", get_small)
     monkeypatch.setattr("crop_sim_ros.task.vector_env.get_scenario", get_small)
