@@ -21,7 +21,7 @@ def hyperparams(*pairs: str) -> list[str]:
 CASES = [
     # train: the task, the seed, the output folder (before the training), the recipe's settings
     (["train", "--task", "atlantis"], "--task atlantis: unknown scenario 'atlantis'"),
-    (["train", *QUOTA, "--seed", "-1"], "--seed -1: must be in 0..2**31-1"),
+    (["train", *QUOTA, "--seed", "-1"], "--seed: -1 is not in 0..2147483647"),
     (["train", "--task", "benton-generated", "--algorithm", "es"], "--algorithm es: for a family task only"),
     (["train", *QUOTA, "--out", "{tmp}/a_file"], "--out: {tmp}/a_file is a file, not a folder"),
     (["train", *QUOTA, "--out", "{tmp}/a_file/run"], "lies under {tmp}/a_file, which is a file"),

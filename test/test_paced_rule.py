@@ -169,7 +169,7 @@ def test_unknown_parameter_is_refused():
     (["--rule", "paced-rule", "--seasons", "5..1"], "crop-sim tune-rule: --seasons: '5..1' names no season"),
     (["--rule", "paced-rule", "--candidates", "0"], "crop-sim tune-rule: --candidates must be in 1..10000"),
     (["--rule", "paced-rule", "--seed", "-1"], "crop-sim tune-rule: --seed"),
-    (["--rule", "paced-rule", "--term-draws", "0"], "crop-sim tune-rule: --term-draws must be in 1..20"),
+    (["--rule", "paced-rule", "--term-draws", "0"], "crop-sim tune-rule: --term-draws: 0 is not in 1..20"),
 ])
 def test_tuner_refuses_bad_input_in_one_line(arguments, message, capsys):
     from crop_agent_ros.cli import main

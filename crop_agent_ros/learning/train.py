@@ -45,9 +45,8 @@ def resolved_settings(task_name: str, algorithm: str, overrides: list[str]):
 
 
 def run(args) -> int:
-    from crop_sim_ros.usage import UsageError
-    if not 0 <= args.seed < 2 ** 31:
-        raise UsageError(f"--seed {args.seed}: must be in 0..2**31-1")
+    from crop_sim_ros.usage import check_range
+    check_range("--seed", args.seed, 0, 2**31 - 1)
     scenario, settings = resolved_settings(args.task, args.algorithm, args.hyperparams)
     if args.show:
         print(json.dumps({"task": scenario.name, "algorithm": args.algorithm, "seed": args.seed,

@@ -277,8 +277,7 @@ def run(args) -> int:
     if not (1 <= args.candidates <= 10_000 and 0 <= args.rounds <= 50):
         raise UsageError("--candidates must be in 1..10000 and --rounds in 0..50")
     term_draws = getattr(args, "term_draws", 1)
-    if not 1 <= term_draws <= 20:
-        raise UsageError("--term-draws must be in 1..20")
+    check_range("--term-draws", term_draws, 1, 20)
     rule = getattr(args, "rule", "budget-rule")
     if rule not in RULES:
         raise UsageError(f"--rule: unknown rule {rule!r}; known: {', '.join(RULES)}")
