@@ -51,7 +51,7 @@ def timings(task_name: str, set_name: str, agents: dict[str, Path], seasons: int
     from crop_agent_ros.policies import family_tuning
     from crop_agent_ros.policies.family_oracle import FamilyOraclePolicy
     from crop_agent_ros.policies.rollout import run_episodes
-    from crop_agent_ros.learning.agent import LearnedPolicy
+    from crop_agent_ros.policies.learned import LearnedPolicy
     task = get_scenario(task_name)
     sets = evaluation_sets(task, far_seasons, far_seed)
     position = next((i for i, s in enumerate(sets) if s.name == set_name), None)

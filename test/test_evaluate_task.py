@@ -122,7 +122,7 @@ def test_missing_rule_file_is_tuned_on_training_seasons_and_written(evaluation, 
 
 def test_every_policy_met_the_same_terms_and_noise_seeds(evaluation, rule_dir):
     """Rerun each policy on the saved terms with noise seeds 0 and 1: the saved returns, bit for bit."""
-    from crop_agent_ros.learning.agent import LearnedPolicy
+    from crop_agent_ros.policies.learned import LearnedPolicy
     from crop_agent_ros.policies.family_tuning import tuned_rule
     from crop_agent_ros.policies.rollout import run_episodes
     from crop_sim_ros.task.scenario import get_scenario, with_weather_of

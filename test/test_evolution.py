@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from crop_agent_ros.learning.agent import LearnedPolicy
+from crop_agent_ros.policies.learned import LearnedPolicy
 from crop_agent_ros.learning.evolution import (Adam, ActorVector, Population, actor_outputs, antithetic_gradient,
                                                centred_ranks)
 from policy_files import Spaces, tiny_task_training
@@ -44,7 +44,7 @@ def test_the_numpy_actor_is_the_sb3_mean_action_and_round_trips_its_parameters()
 
 
 def test_candidates_act_on_their_own_fields_with_their_own_parameters():
-    from crop_agent_ros.learning.agent import AgentInterface, ObservationScaler, action_to_mm
+    from crop_agent_ros.policies.learned import AgentInterface, ObservationScaler, action_to_mm
     from crop_sim_ros.task.layout import EXTENDED
     model = _ppo(EXTENDED.size)
     actor = ActorVector(model.policy)

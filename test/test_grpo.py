@@ -36,7 +36,7 @@ def _train(tmp_path, **settings):
 
 def test_a_tiny_grpo_run_shares_each_groups_season_and_terms_and_writes_loadable_policies(tmp_path, monkeypatch):
     import torch
-    from crop_agent_ros.learning.agent import LearnedPolicy
+    from crop_agent_ros.policies.learned import LearnedPolicy
     from crop_sim_ros.task import IrrigationVectorEnv
     resets = []
     reset = IrrigationVectorEnv.reset

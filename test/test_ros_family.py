@@ -296,7 +296,7 @@ def test_budget_rule_agent_drives_a_family_season_like_offline(tmp_path, quota_s
 def family_agent_file(tmp_path_factory):
     """An untrained family agent file: a PPO network on 29 values and its model.json (scaler fitted on a
     season's observations, so that its actions vary)."""
-    from crop_agent_ros.learning.agent import ObservationScaler
+    from crop_agent_ros.policies.learned import ObservationScaler
 
     path = ppo_file(tmp_path_factory.mktemp("agent") / "model.zip", (EXTENDED.size,))
     env = IrrigationEnv("benton-quota")
@@ -313,7 +313,7 @@ def family_agent_file(tmp_path_factory):
 
 
 def test_learned_agent_drives_a_family_season_like_offline(tmp_path, quota_sim, family_agent_file):
-    from crop_agent_ros.learning.agent import LearnedPolicy
+    from crop_agent_ros.policies.learned import LearnedPolicy
 
     name, _ = quota_sim
     status, output = drive(tmp_path, name, "agent_learned", "-p", "policy:=agent", "-p",
@@ -328,7 +328,7 @@ def test_learned_agent_drives_a_family_season_like_offline(tmp_path, quota_sim, 
 def test_reacting_learned_agent_commands_the_offline_agents_amounts(tmp_path, quota_sim, family_agent_file):
     """Reacting, the agent sees observations only (someone else steps): its commands are the offline agent's, day
     by day."""
-    from crop_agent_ros.learning.agent import LearnedPolicy
+    from crop_agent_ros.policies.learned import LearnedPolicy
 
     name, _ = quota_sim
     policy = ("-p", "policy:=agent", "-p", f"policy_file:={family_agent_file}")

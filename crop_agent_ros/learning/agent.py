@@ -1,15 +1,13 @@
-"""Training's side of the family agents. What the network sees and does and the policy-file loader live in
-:mod:`crop_agent_ros.policies.learned` (a shipped agent runs without training); they are imported here for the
-training modules, which read them as ``learning.agent``'s.
+"""Training's side of the family agents: the spaces of the network that evolution strategies and GRPO train.
+What the network sees and does and the policy-file loader live in :mod:`crop_agent_ros.policies.learned` (a
+shipped agent runs without training).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..policies.learned import ACTION_SCALE_MM, AgentInterface, LearnedPolicy, ObservationScaler, action_to_mm
-
-__all__ = ["ACTION_SCALE_MM", "AgentInterface", "LearnedPolicy", "ObservationScaler", "action_to_mm", "network_spaces"]
+__all__ = ["network_spaces"]
 
 
 def network_spaces(input_size: int):

@@ -24,7 +24,7 @@ ORACLE = "oracle"
 
 def load_agent(path: Path, name: str):
     """A trained policy file as a policy (UsageError if it is missing, corrupt or made for other spaces)."""
-    from .agent import LearnedPolicy
+    from ..policies.learned import LearnedPolicy
     with user_input(f"--agents {name}", (ValueError, KeyError, OSError, zipfile.BadZipFile)):
         return LearnedPolicy(path, name=name)
 

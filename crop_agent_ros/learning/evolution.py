@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .agent import AgentInterface
+from ..policies.learned import AgentInterface
 
 class ActorVector:
     """The actor of a Stable-Baselines3 ``ActorCriticPolicy`` (``mlp_extractor.policy_net``: Linear and Tanh

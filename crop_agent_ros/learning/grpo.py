@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .agent import AgentInterface
+from ..policies.learned import AgentInterface
 from .evolution import ActorVector, CheckpointSchedule
 
 MAX_GRADIENT_NORM = 0.5

@@ -3,7 +3,7 @@ strategies (:mod:`.evolution`) or PPO with group-relative advantages (:mod:`.grp
 seasons (generated weather only; the held-out real seasons and the held-out climate are never seen). The
 settings are the recipe of :mod:`.hyperparameters`.
 
-The network's observation and action are those of :mod:`crop_agent_ros.learning.agent` (normalised raw
+The network's observation and action are those of :mod:`crop_agent_ros.policies.learned` (normalised raw
 observation, action in mm; ``paw_filter``: also a soil-water filter's PAW estimate). Training reward of PPO:
 the task's reward (USD/ha) divided by ``REWARD_SCALE_USD`` and shaped by a potential (Ng et al. 1999),
 Phi(s) = the value of the yield the crop would give if harvested now (tuber price / dry-matter fraction x
@@ -31,7 +31,7 @@ import numpy as np
 
 from crop_sim_ros.output import output_directory, replace_atomically, write_csv_atomic, write_json_atomic
 
-from .agent import ACTION_SCALE_MM, AgentInterface, ObservationScaler
+from ..policies.learned import ACTION_SCALE_MM, AgentInterface, ObservationScaler
 from .training_support import silent_logger, validation_scenario
 
 REWARD_SCALE_USD = 1000.0
@@ -131,7 +131,7 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
     from ..policies.family import FarmFacts, SoilWaterFilter, WaterBudgetRule
     from ..policies.family_tuning import draw_terms
     from ..policies.rollout import run_episodes
-    from .agent import LearnedPolicy
+    from ..policies.learned import LearnedPolicy
 
     torch.set_num_threads(1)
     launched = time.perf_counter()
