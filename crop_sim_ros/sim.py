@@ -11,7 +11,6 @@ import os
 import re
 import socket
 import threading
-import warnings
 from collections import deque
 from dataclasses import dataclass, fields, replace
 from datetime import datetime, timedelta, timezone
@@ -34,7 +33,7 @@ from .session import FarmSession
 from .sim_parameters import MODES, NODE_NAME, PARAMETERS, READ_ONLY_PARAMETERS, ParameterSpec
 from .task import IrrigationEnv, ObservationNoise, Scenario, get_scenario, load_scenario
 from .task.layout import PAPER, layout_of_size
-from .task.scenario import DATA_DIR_ENV, SCENARIO_FILE_KEYS
+from .task.scenario import DATA_DIR_ENV, INSTALLED_DATA_SUBDIR, SCENARIO_FILE_KEYS
 
 # Parameters that define the environment (a change rebuilds it at the next reset).
 ENV_PARAMETERS = ("scenario", "data_dir", "crop", "cultivar", "soil", "co2_ppm", "noise_scale",
@@ -44,8 +43,6 @@ RCLPY_PARAMETERS = ("use_sim_time", "start_type_description_service")
 REFUSAL_MAX_CHARS = 400
 _QUOTED = re.compile(r"'(?:[^'\\\n]|\\.)*'|\"(?:[^\"\\\n]|\\.)*\"")
 STATUS_PERIOD_S = 1.0  # /diagnostics: the node's status is published this often (and at once on a change)
-# Where an installed package keeps the reference data (share/crop_sim_ros/<this>), found through the ament index.
-INSTALLED_DATA_SUBDIR = "data"
 
 
 class StartupError(RuntimeError):
@@ -143,9 +140,10 @@ def scenario_error(config: EnvConfig, error: BaseException) -> str:
 def build_scenario(config: EnvConfig) -> Scenario:
     """The Scenario of ``config``: a built-in name or YAML path, with the overrides applied and the crop,
     cultivar and soil looked up (UnknownNameError, ValueError or FileNotFoundError on bad values; for a file that
-    is not a scenario YAML, ScenarioFileError first). With no ``data_dir``: :func:`installed_data_dir`, else the
-    scenario's own default (``$CROP_SIM_DATA_DIR``, else the checkout's shared/data)."""
-    data_dir = config.data_dir or installed_data_dir()
+    is not a scenario YAML, ScenarioFileError first). With no ``data_dir``: the scenario's default
+    (:func:`crop_sim_ros.task.scenario.default_data_dir`: the ament index's share/crop_sim_ros/data,
+    ``$CROP_SIM_DATA_DIR``, else the checkout's shared/data)."""
+    data_dir = config.data_dir or None
     name = config.scenario.strip()
     if not name:
         raise ValueError("empty name")
@@ -170,21 +168,6 @@ def build_scenario(config: EnvConfig) -> Scenario:
     scenario = replace(scenario, **changes)
     scenario.field_parameters()  # UnknownNameError for an unknown crop, cultivar or soil
     return scenario
-
-
-def installed_data_dir() -> Path | None:
-    """``share/crop_sim_ros/data`` of a package installed where the ament index finds it (``colcon build``,
-    ``AMENT_PREFIX_PATH``), if that directory exists; else None. The first place a node without ``data_dir``
-    looks; then ``$CROP_SIM_DATA_DIR``, then the checkout's ``../shared/data`` (the scenario's default)."""
-    try:
-        from ament_index_python.packages import get_package_share_directory  # noqa: PLC0415
-
-        with warnings.catch_warnings():  # it warns when the share directory does not exist: checked below
-            warnings.simplefilter("ignore")
-            share = Path(get_package_share_directory("crop_sim_ros")) / INSTALLED_DATA_SUBDIR
-    except Exception:  # noqa: BLE001 - no AMENT_PREFIX_PATH, or the package is not in the index
-        return None
-    return share if share.is_dir() else None
 
 
 def data_dir_hint() -> str:

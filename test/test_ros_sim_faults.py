@@ -441,22 +441,23 @@ def test_sim_node_with_no_data_found_says_where_it_looked_and_how_to_set_it(tmp_
 
 def test_installed_data_dir_is_share_data_of_the_package_in_the_ament_index(tmp_path, monkeypatch, shared_data):
     """share/crop_sim_ros/data of a package in the ament index comes first, before CROP_SIM_DATA_DIR: a node
-    started with data_dir '' builds its scenario from there."""
+    started with data_dir '' builds its scenario from there, as every command does."""
     from crop_sim_ros import sim
+    from crop_sim_ros.task.scenario import default_data_dir, installed_data_dir
 
     prefix = tmp_path / "install"
     (prefix / "share" / "ament_index" / "resource_index" / "packages").mkdir(parents=True)
     (prefix / "share" / "ament_index" / "resource_index" / "packages" / "crop_sim_ros").write_text("")
     monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix))
     monkeypatch.setenv("CROP_SIM_DATA_DIR", str(tmp_path / "elsewhere"))
-    assert sim.installed_data_dir() is None  # in the index, but no data installed: the next places are searched
+    assert installed_data_dir() is None  # in the index, but no data installed: the next places are searched
     (prefix / "share" / "crop_sim_ros").mkdir(parents=True, exist_ok=True)
     (prefix / "share" / "crop_sim_ros" / "data").symlink_to(shared_data)
-    assert sim.installed_data_dir() == prefix / "share" / "crop_sim_ros" / "data"
+    assert installed_data_dir() == default_data_dir() == prefix / "share" / "crop_sim_ros" / "data"
     config = sim.EnvConfig("benton-2000", "", "", "", "", -1.0, 1.0, -1.25e-4)
     assert sim.build_scenario(config).resolved_data_dir == prefix / "share" / "crop_sim_ros" / "data"
     monkeypatch.delenv("AMENT_PREFIX_PATH")
-    assert sim.installed_data_dir() is None
+    assert installed_data_dir() is None and default_data_dir() == tmp_path / "elsewhere"
 
 
 # --- free running, /clock, bursts -------------------------------------------------------------------------------

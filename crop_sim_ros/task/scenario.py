@@ -76,6 +76,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import warnings
 from dataclasses import dataclass, fields, replace
 from datetime import date
 from pathlib import Path
@@ -98,6 +99,8 @@ from .terms import (MAX_EVENT_COST_USD, MAX_NOMINAL_SEASON_DAYS, MAX_PRICE_USD_P
 
 # The environment variable that names the reference data directory (see default_data_dir).
 DATA_DIR_ENV = "CROP_SIM_DATA_DIR"
+# Where an installed package keeps the reference data (share/crop_sim_ros/<this>), found through the ament index.
+INSTALLED_DATA_SUBDIR = "data"
 # crop_sim_ros/task/scenario.py -> parents[1] is the package directory.
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 SCENARIO_DIR = Path(__file__).with_name("scenarios")
@@ -440,10 +443,29 @@ def find_data_dir(environment_value: str | None, cwd: Path | None, package_dir: 
     return None
 
 
+def installed_data_dir() -> Path | None:
+    """``share/crop_sim_ros/data`` of a package installed where the ament index finds it (``colcon build``,
+    ``AMENT_PREFIX_PATH``), if that directory exists; else None. The first place :func:`default_data_dir`
+    looks."""
+    try:
+        from ament_index_python.packages import get_package_share_directory  # noqa: PLC0415
+
+        with warnings.catch_warnings():  # it warns when the share directory does not exist: checked below
+            warnings.simplefilter("ignore")
+            share = Path(get_package_share_directory("crop_sim_ros")) / INSTALLED_DATA_SUBDIR
+    except Exception:  # noqa: BLE001 - no AMENT_PREFIX_PATH, or the package is not in the index
+        return None
+    return share if share.is_dir() else None
+
+
 def default_data_dir() -> Path:
-    """Where scenario weather files are found when no ``data_dir`` is given (:func:`find_data_dir` from the
-    environment, the current directory and this package's location). If nothing is found: ``../shared/data``
-    beside the package's parent directory, which the error of a missing weather file names."""
+    """Where scenario weather files are found when no ``data_dir`` is given: :func:`installed_data_dir`, else
+    :func:`find_data_dir` from the environment, the current directory and this package's location. If nothing is
+    found: ``../shared/data`` beside the package's parent directory, which the error of a missing weather file
+    names."""
+    installed = installed_data_dir()
+    if installed is not None:
+        return installed
     try:
         cwd = Path.cwd()
     except OSError:  # the current directory was removed
