@@ -4,7 +4,7 @@ Showed: on the late-sown held-out climate (maricopa-late-generated) ES irrigates
 (151 mm in days 20-59 where the oracle and the rule spend 194 and 216 mm), which is where it loses to the rule.
 
     python experiments/irrigation_timing.py --task benton-quota --set maricopa-late-generated \\
-        --agent es=results/family/agents/benton-quota-es-s0 [--agent ...] [--seasons 12] [--period-days 20]
+        --agent es=crop_agent_ros/agents/benton-quota/es [--agent ...] [--seasons 12] [--period-days 20]
 
 The set's first ``--seasons`` seasons: ``crop-sim evaluate``'s set with its weather and the terms of its position
 in the whole protocol (``--far-seasons``, ``--far-seed`` and ``--terms-seed`` as there: a generated pool's first
@@ -12,7 +12,7 @@ seasons depend on its size), noise seed 0; the hindsight oracle, the
 task's tuned rule and each ``--agent`` (a run directory with ``model.zip``). Prints one row per policy: mean
 return (USD/ha), water (mm), dry yield (t/ha) and days to the season's end, then the mean irrigation (mm) in
 each period of ``--period-days`` days after sowing and the mean true plant-available water (mm) over it. How the
-late-sown held-out climate's failure was read (README, "The held-out climate sown late").
+late-sown held-out climate's failure was read (docs/findings.md).
 """
 
 from __future__ import annotations
