@@ -2,15 +2,15 @@
 run in one process, bit for bit.
 
 Every Ray process runs inside a loopback-only network namespace (test/ray_support.py); the pytest process
-never imports Ray. The agents are two committed benton-quota PPO runs (final and 1 % checkpoint each), copied
-to a temporary directory; the rule is the committed tuned rule of benton-quota.
+never imports Ray. The agents are two runs (final and 1 % checkpoint each) made in a temporary directory from
+the shipped benton-quota ES agent, each of the four networks with its weights scaled differently so that a mix-up
+of runs or checkpoints shows; the rule is the committed tuned rule of benton-quota.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -21,28 +21,42 @@ import pytest
 from crop_agent_ros.learning import evaluate_task as et
 from crop_agent_ros.learning.evaluation_units import oracle_returns
 from crop_agent_ros.policies.family_tuning import tuned_rule
+from crop_agent_ros.policies.learned import algorithm_class
 from crop_agent_ros.policies.rollout import run_episodes
 from ray_support import LoopbackNamespace
 
 ROOT = Path(__file__).resolve().parents[1]
 CROP_SIM = str(Path(sys.executable).parent / "crop-sim")
 TASK = "benton-quota"
-AGENT_RUNS = ("benton-quota-ppo-s0", "benton-quota-ppo-s1")
+AGENT_RUNS = ("benton-quota-es-s0", "benton-quota-es-s1")
+SHIPPED = ROOT / "crop_agent_ros" / "agents" / TASK / "es" / "model.zip"
+# The weight scale of each run's (final, 1 % checkpoint) network: four different policies.
+WEIGHT_SCALES = {"benton-quota-es-s0": (1.0, 0.5), "benton-quota-es-s1": (0.9, 0.25)}
 NOISE_SEEDS = 2
 SMALL = ["--sets", "heldout-real", "--noise-seeds", str(NOISE_SEEDS), "--bootstrap", "100", "--no-curves"]
 
 
 @pytest.fixture(scope="module")
 def agents(tmp_path_factory) -> Path:
-    """Copies of two committed training runs (model.zip/json, early_model.zip/json)."""
+    """Two training runs (model.zip/json, early_model.zip/json) made from the shipped agent (WEIGHT_SCALES)."""
+    import torch
+
     root = tmp_path_factory.mktemp("agents")
-    for name in AGENT_RUNS:
-        shutil.copytree(ROOT / "results" / "family" / "agents" / name, root / name)
+    config = json.loads(SHIPPED.with_suffix(".json").read_text())
+    for seed, name in enumerate(AGENT_RUNS):
+        (root / name).mkdir()
+        for stem, scale in zip(("model", "early_model"), WEIGHT_SCALES[name]):
+            model = algorithm_class("es").load(str(SHIPPED), device="cpu")
+            with torch.no_grad():
+                for parameter in model.policy.parameters():
+                    parameter.mul_(scale)
+            model.save(str(root / name / f"{stem}.zip"))
+            (root / name / f"{stem}.json").write_text(json.dumps({**config, "seed": seed}))
     return root
 
 
 def evaluate_argv(agents: Path, out: Path, *extra: str) -> list[str]:
-    return [CROP_SIM, "evaluate", "--task", TASK, "--agents", f"ppo={agents}/{TASK}-ppo-s*", *SMALL,
+    return [CROP_SIM, "evaluate", "--task", TASK, "--agents", f"es={agents}/{TASK}-es-s*", *SMALL,
             "--out", str(out), *extra]
 
 
@@ -134,12 +148,12 @@ def test_the_local_run_equals_each_policy_run_directly(local_and_cluster, agents
     torch.set_num_threads(1)  # as the evaluation runs its units (more threads may round a network differently)
     try:
         assert saved["returns_usd_ha"][et.RULE] == [direct(tuned_rule(TASK))]
-        finals = [direct(et.load_agent(agents / run / "model.zip", "ppo")) for run in AGENT_RUNS]
-        earlies = [direct(et.load_agent(agents / run / "early_model.zip", "ppo-1%")) for run in AGENT_RUNS]
+        finals = [direct(et.load_agent(agents / run / "model.zip", "es")) for run in AGENT_RUNS]
+        earlies = [direct(et.load_agent(agents / run / "early_model.zip", "es-1%")) for run in AGENT_RUNS]
     finally:
         torch.set_num_threads(threads)
-    assert saved["returns_usd_ha"]["ppo"] == finals
-    assert saved["returns_usd_ha"]["ppo, 1 % checkpoint"] == earlies
+    assert saved["returns_usd_ha"]["es"] == finals
+    assert saved["returns_usd_ha"]["es, 1 % checkpoint"] == earlies
     assert finals != earlies                                      # two different networks
     oracle, plans = oracle_returns(heldout, terms)
     assert saved["oracle_returns_usd_ha"] == oracle.tolist()
@@ -162,13 +176,13 @@ def test_an_agent_sent_as_bytes_acts_as_the_file_it_came_from(agents):
     far = et.evaluation_sets(et._task(TASK), far_seasons=2)[1]
     terms = et.set_terms(far, et.TERMS_SEED + 1)
     path = agents / AGENT_RUNS[0] / "model.zip"
-    agent_file = et.AgentFile.read(path, "ppo")
+    agent_file = et.AgentFile.read(path, "es")
     loaded: dict = {}
     policy = agent_file.policy(loaded)
     assert agent_file.policy(loaded) is policy and len(loaded) == 1       # loaded once per process
     unit = et.Unit(0, str(path), 1, 0, len(far.seasons))
     from_bytes = et.run_unit(unit, far, terms, policy).returns
-    expected = run_episodes(et.load_agent(path, "ppo"), far.scenario, far.seasons, seed=1, terms=terms).episode_return
+    expected = run_episodes(et.load_agent(path, "es"), far.scenario, far.seasons, seed=1, terms=terms).episode_return
     assert from_bytes.tolist() == expected.tolist()
 
 
