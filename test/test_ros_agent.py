@@ -21,7 +21,7 @@ import pytest
 import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exists)
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rcl_interfaces.srv import GetParameters  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
+from crop_sim_interfaces.srv import Step  # noqa: E402
 
 from crop_agent_ros.ros.spin import PrivateRos, call, wait_for_service  # noqa: E402
 from crop_agent_ros.ros.process import NodeProcess, isolated_ros_env  # noqa: E402
@@ -40,7 +40,7 @@ def test_reactive_agent_commands_every_day(tmp_path):
             accepted = []
             status = ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
                                                   lambda m: accepted.append(ri.status_values(m)), ri.READER_QOS)
-            step = ros.node.create_client(Trigger, f"{name}/step")
+            step = ros.node.create_client(Step, f"{name}/step")
             wait_for_service(ros.executor, step, 30)
             ros.spin_until(lambda: status.get_publisher_count() >= 1, 30, "the status topic")
             agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="agent_node",
@@ -49,8 +49,8 @@ def test_reactive_agent_commands_every_day(tmp_path):
             for day in range(10):  # the agent commands each day as soon as it sees the day's observation
                 ros.spin_until(lambda: any(a["accepted"] and a["day"] == day for a in accepted), 30,
                                f"the agent's command for day {day}")
-                response = call(ros.executor, step, Trigger.Request())
-                assert response.success and json.loads(response.message)["irrigation_mm"] == 7.5
+                response = call(ros.executor, step, ros_support.pending_step())
+                assert response.success and response.result.irrigation_mm == 7.5
         rows = ros_support.read_log(log)
         assert [(int(r["day"]), float(r["irrigation_mm"])) for r in rows] == [(d, 7.5) for d in range(10)]
     finally:
