@@ -552,3 +552,36 @@ def test_stepping_commands_step_once_and_only_their_day(shared_sim, ros):
     client.day = 1
     obs, reward, terminated, truncated, summary = client.step(2.0)  # the client's own topic path
     assert summary["day"] == 2 and summary["irrigation_mm"] == 2.0 and obs[ri.OBS_DAY] == 2
+
+
+def test_typed_step_and_reset_requests(shared_sim, ros):
+    """~/step: the request's day and episode are checked like a command's (a wrong one is refused, nothing
+    changes); ~/reset: the request's seed is this season's only (the parameter stays), its scenario is set as
+    the parameter, a seed below FROM_PARAMETER is refused."""
+    from crop_sim_interfaces.srv import Reset, Step
+
+    _, name, _ = shared_sim
+    reset = ros.node.create_client(Reset, f"{name}/reset", qos_profile=ri.SERVICE_CLIENT_QOS)
+    step = step_client(ros, name)
+    seed_before = ros_support.connect(ros, name).get_parameters(["seed"])["seed"]
+    answer = call(ros.executor, reset, Reset.Request(seed=21))
+    assert answer.success and answer.terms.seed == 21 and answer.terms.scenario == "benton-generated"
+    episode = answer.terms.episode
+    assert np.asarray(answer.observation, np.float32)[ri.OBS_DAY] == 0.0
+    for request, why in ((Step.Request(irrigation_mm=1.0, day=1), "day 1 is in the future"),
+                         (Step.Request(irrigation_mm=1.0, episode=episode + 1), f"episode {float(episode + 1)!r}"),
+                         (Step.Request(irrigation_mm=-1.0), "negative")):
+        refused = call(ros.executor, step, request)
+        assert not refused.success and why in refused.message, refused.message
+        assert (refused.result.episode, refused.result.day) == (episode, 0)
+    stepped = call(ros.executor, step, Step.Request(irrigation_mm=3.5, day=0, episode=episode))
+    assert stepped.success and (stepped.result.day, stepped.result.irrigation_mm) == (1, 3.5)
+    assert stepped.result.header.stamp.sec == ri.sim_time(date.fromisoformat(answer.terms.sowing_date), 1).sec
+    bad = call(ros.executor, reset, Reset.Request(seed=-3))
+    assert not bad.success and "seed: -3" in bad.message
+    other = call(ros.executor, reset, Reset.Request(scenario="benton-quota", seed=2))
+    assert other.success and other.terms.scenario == "benton-quota" and len(other.observation) == 29
+    assert other.terms.reward_unit == "USD/ha" and other.terms.quota_mm < math.inf
+    client = ros_support.connect(ros, name)
+    assert client.get_parameters(["seed", "scenario"]) == {"seed": seed_before, "scenario": "benton-quota"}
+    assert call(ros.executor, reset, Reset.Request(scenario="benton-generated")).success  # as the fixture had it

@@ -154,7 +154,9 @@ class AgentNode(Node):
                                      ri.COMMAND_QOS)
             # a command published before the simulator's subscription matched is lost: repeat it until accepted
             self.create_timer(0.2, self._repeat_pending)
-            self._season_server = ActionServer(self, RunSeason, "~/" + RUN_SEASON_ACTION, self._run_season)
+            # feedback: one message a day in a burst; a deep queue keeps them for a reader that lags
+            self._season_server = ActionServer(self, RunSeason, "~/" + RUN_SEASON_ACTION, self._run_season,
+                                               feedback_pub_qos_profile=ri.COMMAND_STATUS_QOS)
 
     def _on_observation(self, message: Float32MultiArray) -> None:
         obs = ri.observation_from_message(message)
