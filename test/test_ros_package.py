@@ -270,3 +270,18 @@ def test_colcon_builds_both_packages_in_a_workspace_and_the_copy_installed_node_
     finally:
         process.send_signal(signal.SIGINT)
         assert process.wait(timeout=30) == 0, out.read_text()
+
+
+def test_build_script_names_a_missing_tool_in_one_line(tmp_path):
+    """scripts/build_interfaces.sh on a machine without cmake: exit 1, one line saying what to install."""
+    import shutil
+
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    for tool in ("dirname", "cc", "c++", "make"):  # everything the script runs before its checks, but cmake
+        (bin_dir / tool).symlink_to(shutil.which(tool))
+    done = subprocess.run(["/bin/bash", str(REPO / "scripts" / "build_interfaces.sh"), sys.prefix],
+                          env={"PATH": str(bin_dir)}, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1 and done.stdout == ""
+    assert done.stderr.splitlines() == ["build_interfaces: cmake not found: install a C/C++ toolchain, cmake and make "
+                                        "(Debian/Ubuntu: sudo apt-get install build-essential cmake)"]
