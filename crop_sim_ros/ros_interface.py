@@ -1,9 +1,13 @@
-"""The simulator node's ROS interface in one place: names, QoS, message layouts, encoders and decoders.
+"""The simulator node's ROS interface in one place: names, QoS, message fillers and readers.
 
 Used by the simulator node (which publishes) and by the agent node, the Gymnasium bridge and the tests
-(which read), so that a layout is written once. No science here: it only packs numbers into standard
-messages and back. Only standard interfaces are used (std_msgs, std_srvs, rosgraph_msgs,
-diagnostic_msgs), so stock ``ros2 topic echo`` shows every topic.
+(which read), so that a layout is written once. No science here: it only puts numbers into messages and back.
+The state topics, the step result, the services and the action are the typed interfaces of the
+``crop_sim_interfaces`` package (``ros2 interface show crop_sim_interfaces/msg/CropState``): named fields with
+their units, stamped in farm time (sowing date 00:00 UTC + day days) with the field as ``header.frame_id``
+(the simulator's namespace, ``field7`` under ``/field7``; ``farm`` at the root). The RL observation stays a
+``std_msgs/Float32MultiArray`` (a learner's vector, exactly as the Gymnasium env gives it); commands are
+``[day, mm(, episode)]`` arrays; command fates and the node's status are diagnostic_msgs.
 
 Names are relative to the simulator node (``~/...``, default node name ``crop_sim``), so
 ``-r __ns:=/field7`` or ``-r __node:=...`` runs several farms side by side. Two names are global: ``/clock``
@@ -14,26 +18,33 @@ the node, so farms side by side share it as every ROS node does).
 ==================================== ============================== ==========================================
 Name                                 Type                           Content
 ==================================== ============================== ==========================================
-``~/step`` (service)                 std_srvs/Trigger               advance one day; message = JSON summary
-``~/reset`` (service)                std_srvs/Trigger               new season (parameters ``scenario``,
-                                                                    ``seed``, ...); message = JSON summary
+``~/step`` (service)                 crop_sim_interfaces/srv/Step   today's irrigation_mm (day, episode: -1
+                                                                    = the current) in; the day's StepResult
+                                                                    and the new observation out
+``~/reset`` (service)                crop_sim_interfaces/srv/Reset  scenario ('' = the parameter), seed,
+                                                                    weather_season (-2 = the parameter, -1 =
+                                                                    draw) in; FarmTerms and day 0's
+                                                                    observation out
 ``~/observation``                    std_msgs/Float32MultiArray     the observation, float32 exactly as the
                                                                     Gymnasium env gives it: 20 values (the
                                                                     paper's task) or 29 (a family task), the
                                                                     labels from the scenario's layout
-``~/farm_terms``                     std_msgs/Float64MultiArray     at each reset: [episode, tuber price
-                                                                    USD/t, water cost USD/mm, event cost USD,
-                                                                    quota mm, capacity mm/d] (see below)
-``~/biomass``                        std_msgs/Float64MultiArray     [day, noisy biomass t/ha]
-``~/paw``                            std_msgs/Float64MultiArray     [day, noisy plant-available water mm];
-                                                                    NaN when the day has no reading
-``~/weather/today``                  std_msgs/Float64MultiArray     [day, TMAX, TMIN, TAVG, RAIN, SRAD, CO2,
-                                                                    VAP, WIND] of the day
-``~/weather/forecast``               std_msgs/Float64MultiArray     [day + 1, the same 8, noisy forecast]
-``~/step_result``                    std_msgs/Float64MultiArray     [episode, day, irrigation mm, reward,
-                                                                    terminated, truncated, yield t/ha,
-                                                                    return, command sequence]; reward and
-                                                                    return in the scenario's unit
+``~/crop_state``                     crop_sim_interfaces/CropState  the day's sensed crop: biomass t/ha, PAW
+                                                                    mm (NaN: no reading), thermal time degC
+                                                                    d; canopy fsolar and maturity (model
+                                                                    state, monitoring only)
+``~/weather/today``                  crop_sim_interfaces/Weather    the day's TMAX, TMIN, TAVG degC, RAIN mm,
+                                                                    SRAD MJ m-2, CO2 ppm, VAP hPa, WIND m/s
+``~/weather/forecast``               crop_sim_interfaces/Forecast   tomorrow's noisy forecast of the same 8
+                                                                    and the noise SD of each
+``~/step_result``                    crop_sim_interfaces/StepResult after each step (and day 0 after a reset):
+                                                                    irrigation mm applied and requested,
+                                                                    reward, return, reward_unit, terminated,
+                                                                    truncated, yield t/ha, command sequence
+``~/farm_terms``                     crop_sim_interfaces/FarmTerms  at each reset: scenario, seed, weather,
+                                                                    tuber price USD/t, water cost USD/mm,
+                                                                    event cost USD, quota mm, capacity mm/d,
+                                                                    action bound mm, potential yield t/ha
 ``/clock`` (parameter clock_topic)   rosgraph_msgs/Clock            farm time: sowing date 00:00 UTC + day
 ``~/irrigation`` (subscribed)        std_msgs/Float64MultiArray     command [day, mm] or [day, mm, episode]
 ``~/irrigation_step`` (subscribed)   std_msgs/Float64MultiArray     the same command, and step at once
@@ -49,29 +60,31 @@ Name                                 Type                           Content
                                                                     (level WARN, ERROR); every second and at
                                                                     once on a change (rqt_robot_monitor and
                                                                     the diagnostic aggregator read it)
+``<agent>/run_season`` (action)      crop_sim_interfaces/action/    served by the agent node: scenario, seed,
+                                     RunSeason                      policy in; a StepResult per day as
+                                                                    feedback; yield, water, return out
 ==================================== ============================== ==========================================
 
 ``day`` is the number of days since sowing of the state the message describes (0 after a reset); the
-observation carries it at index 2. Every Float64MultiArray has one dimension whose label lists the
-values in order with their units, e.g. ``day[d],biomass_t_ha[t/ha]``. Values that come from the observation
-(biomass, PAW, today's weather, forecast) are the observation's float32 values widened to float64, so they
-equal the observation exactly.
+observation carries it at index 2. Values that come from the observation (biomass, thermal time, PAW, today's
+weather, forecast) are the observation's float32 values widened to float64, so they equal the observation
+exactly.
 
 The observation's layout is the scenario's (:mod:`crop_sim_ros.task.layout`): the paper's 20 values, or the
 task family's 29 (the same 20, then prices, quota left, days left, capacity, whether PAW was read, yesterday's
 irrigation, ET0). A scenario change at a reset changes the size and labels of the next observation; readers
 take the layout from the message's size (:func:`observation_from_message`). In a family task the PAW sensor
-may miss a day (``paw_observed`` 0, the observation's PAW 0): ``~/paw`` then carries NaN, not a reading.
+may miss a day (``paw_observed`` 0, the observation's PAW 0): CropState then carries ``paw_mm`` NaN and
+``paw_observed`` false.
 
-Reward units (``~/step_result``, the JSON's ``reward_unit``): the paper's task pays t/ha (dry yield at
-harvest minus ``irrigation_cost_per_mm`` x mm; labels ``reward[1]``, ``return[1]`` as ever); a family task
-pays net return in USD/ha (labels ``reward[USD/ha]``, ``return[USD/ha]``). ``~/farm_terms`` (latched)
-gives the season's terms, drawn at each reset: the fresh tuber price (USD/t), water cost (delivered water +
-pumping energy, USD per mm on one ha), the fixed cost of a day with irrigation (USD/ha), the season's water
-quota (mm; +inf = none) and the most the system applies in a day (mm/d; the action bound when unlimited).
-A paper-task scenario has no money terms: price, water cost and event cost are NaN there.
+Reward units (StepResult's ``reward_unit``): the paper's task pays t/ha (dry yield at harvest minus
+``irrigation_cost_per_mm`` x mm); a family task pays net return in USD/ha. ``~/farm_terms`` (latched) gives
+the season's terms, drawn at each reset: the fresh tuber price (USD/t), water cost (delivered water + pumping
+energy, USD per mm on one ha), the fixed cost of a day with irrigation (USD/ha), the season's water quota (mm;
++inf = none) and the most the system applies in a day (mm/d; the action bound when unlimited). A paper-task
+scenario has no money terms: price, water cost and event cost are NaN there.
 
-QoS (explicit, see the constants below): the state topics (observation, farm_terms, biomass, paw, weather,
+QoS (explicit, see the constants below): the state topics (observation, farm_terms, crop_state, weather,
 step_result) and /diagnostics are reliable + transient_local with depth 1, so a subscriber that joins late
 still gets the latest day (a volatile reader, as the diagnostic aggregator's, matches too). ``/clock`` has
 the QoS of ROS time sources (best effort, volatile, depth 1: what rclpy's and rclcpp's ``use_sim_time``
@@ -82,7 +95,6 @@ is queued, never overwritten; clients publish with depth 10 (or keep-all for bur
 
 from __future__ import annotations
 
-import json
 import math
 from datetime import date, datetime, timezone
 from typing import Generic, NamedTuple, TypeVar, get_type_hints
@@ -91,17 +103,18 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
+from crop_sim_interfaces.msg import CropState, FarmTerms, Forecast, StepResult, Weather
 from std_msgs.msg import Float32MultiArray, Float64MultiArray, MultiArrayDimension
 
-from .task.layout import BIOMASS, DAY, FORECAST, PAPER, PAW, PAW_OBSERVED, TODAY, ObservationLayout, layout_of_size
+from .task.layout import (BIOMASS, DAY, FORECAST, PAPER, PAW, PAW_OBSERVED, THERMAL_TIME, TODAY, WEATHER_NAMES,
+                          ObservationLayout, layout_of_size)
 
 NODE_NAME = "crop_sim"
 
 STEP_SERVICE = "step"
 RESET_SERVICE = "reset"
 OBSERVATION_TOPIC = "observation"
-BIOMASS_TOPIC = "biomass"
-PAW_TOPIC = "paw"
+CROP_STATE_TOPIC = "crop_state"
 WEATHER_TODAY_TOPIC = "weather/today"
 WEATHER_FORECAST_TOPIC = "weather/forecast"
 STEP_RESULT_TOPIC = "step_result"
@@ -158,16 +171,22 @@ SERVICE_CLIENT_QOS = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=Reli
 # has PAPER's 20, a family task EXTENDED's 29 (layout.labels). Columns both share (EXTENDED starts with PAPER):
 OBSERVATION_LABELS = PAPER.labels
 OBS_BIOMASS, OBS_DAY, OBS_TODAY, OBS_FORECAST, OBS_PAW, OBS_PAW_OBSERVED = BIOMASS, DAY, TODAY, FORECAST, PAW, PAW_OBSERVED
+OBS_THERMAL_TIME = THERMAL_TIME
+
+# The season's money terms and limits in FarmSession.terms order (crop_sim_interfaces/msg/FarmTerms's fields).
+TERM_FIELDS = ("tuber_price_usd_per_t", "water_cost_usd_per_mm", "event_cost_usd", "quota_mm", "capacity_mm_per_day")
+# Forecast's noise SD fields, in WEATHER_NAMES order: tmax_degc -> tmax_sd_degc, wind_m_s -> wind_sd_m_s.
+FORECAST_SD_FIELDS = tuple("_sd_".join(name.split("_", 1)) for name in WEATHER_NAMES)
 
 Record = TypeVar("Record", bound=tuple)
 _CASTS = {int: int, float: float, bool: lambda value: value == 1.0}
 
 
 class ArrayCodec(Generic[Record]):
-    """One Float64MultiArray layout, declared once: a NamedTuple's fields (typed ``int``, ``bool`` or ``float``)
-    and, for each, its label ``name[unit]``; the message's labels, :meth:`message`/:meth:`fill` (record ->
-    message) and :meth:`read` (message -> record) all derive from it. ``int`` and ``bool`` travel as float64
-    (exact for whole numbers; a bool is 1.0 or 0.0)."""
+    """One Float64MultiArray layout (the irrigation command's), declared once: a NamedTuple's fields (typed
+    ``int``, ``bool`` or ``float``) and, for each, its label ``name[unit]``; the message's labels,
+    :meth:`message`/:meth:`fill` (record -> message) and :meth:`read` (message -> record) all derive from it.
+    ``int`` and ``bool`` travel as float64 (exact for whole numbers; a bool is 1.0 or 0.0)."""
 
     def __init__(self, record: type[Record], labels: tuple[str, ...]):
         if len(labels) != len(record._fields):
@@ -177,7 +196,7 @@ class ArrayCodec(Generic[Record]):
         self._casts = tuple(_CASTS[types[name]] for name in record._fields)
 
     def labelled(self) -> Float64MultiArray:
-        """A new message with this layout's labels and no values yet (to :meth:`fill` day after day)."""
+        """A new message with this layout's labels and no values yet (to :meth:`fill` again and again)."""
         message = Float64MultiArray()
         _layout(message, self.labels)
         return message
@@ -200,40 +219,6 @@ class ArrayCodec(Generic[Record]):
         return self.record(*(cast(value) for cast, value in zip(self._casts, values)))
 
 
-class StepResult(NamedTuple):
-    """~/step_result: the day a step produced (also the core of the step's JSON summary)."""
-    episode: int
-    day: int  # of the state after the step
-    irrigation_mm: float  # applied (after capacity and quota)
-    reward: float  # in the scenario's reward unit
-    terminated: bool  # the crop matured
-    truncated: bool
-    yield_t_ha: float  # dry yield, 0 before maturity
-    episode_return: float  # the season's return so far (JSON key "return")
-    command_sequence: int  # the command applied (-1: none)
-
-    def summary(self) -> dict:
-        """The step JSON's keys for these values."""
-        values = self._asdict()
-        values["return"] = values.pop("episode_return")
-        return values
-
-    @classmethod
-    def from_summary(cls, summary: dict) -> "StepResult":
-        """The step JSON's values as a record (KeyError names a missing key)."""
-        return cls(**{name: summary["return" if name == "episode_return" else name] for name in cls._fields})
-
-
-class FarmTerms(NamedTuple):
-    """~/farm_terms: the season's terms, drawn at each reset (NaN where the paper's task has none; inf: no limit)."""
-    episode: int
-    tuber_price_usd_per_t: float  # fresh tubers
-    water_cost_usd_per_mm: float  # delivered water + pumping energy, per mm on one ha
-    event_cost_usd: float  # per day with irrigation, per ha
-    quota_mm: float  # the season's water quota
-    capacity_mm_per_day: float  # the most the system applies in a day
-
-
 class IrrigationCommand(NamedTuple):
     """~/irrigation and ~/irrigation_step: ``irrigation_mm`` for ``day``, valid only in ``episode`` (a command of
     two values, without the episode, is valid in any; the simulator checks what arrives, see FarmSession)."""
@@ -242,37 +227,88 @@ class IrrigationCommand(NamedTuple):
     episode: int
 
 
-class BiomassReading(NamedTuple):
-    """~/biomass: the day's noisy biomass (the observation's value)."""
-    day: int
-    biomass_t_ha: float
-
-
-class PawReading(NamedTuple):
-    """~/paw: the day's noisy plant-available water; NaN when the sensor gave no reading."""
-    day: int
-    paw_mm: float
-
-
-WeatherToday = NamedTuple("WeatherToday", [("day", int)] + [(name, float) for name in PAPER.names[TODAY]])
-WeatherToday.__doc__ = "~/weather/today: the day and its weather (the observation's values and units)."
-WeatherForecast = NamedTuple("WeatherForecast", [("for_day", int)] + [(name, float) for name in PAPER.names[FORECAST]])
-WeatherForecast.__doc__ = "~/weather/forecast: the noisy forecast for the next day (the observation's values)."
-
-_STEP_RESULT_LABELS = ("episode[1]", "day[d]", "irrigation[mm]", "reward[1]", "terminated[0/1]", "truncated[0/1]",
-                       "yield[t/ha]", "return[1]", "command_sequence[1]")
-STEP_RESULT = ArrayCodec(StepResult, _STEP_RESULT_LABELS)
-# A family task's reward and return are net return in USD/ha (crop_sim_ros.task.terms).
-FAMILY_STEP_RESULT = ArrayCodec(StepResult, tuple(label.replace("[1]", "[USD/ha]")
-                                                  if label.startswith(("reward", "return")) else label
-                                                  for label in _STEP_RESULT_LABELS))
-FARM_TERMS = ArrayCodec(FarmTerms, ("episode[1]", "tuber_price_usd_per_t[USD/t]", "water_cost_usd_per_mm[USD/mm]",
-                                    "event_cost_usd[USD]", "quota_mm[mm]", "capacity_mm_per_day[mm/d]"))
 IRRIGATION = ArrayCodec(IrrigationCommand, ("day[d]", "irrigation[mm]", "episode[1]"))
-BIOMASS_READING = ArrayCodec(BiomassReading, ("day[d]", OBSERVATION_LABELS[BIOMASS]))
-PAW_READING = ArrayCodec(PawReading, ("day[d]", OBSERVATION_LABELS[PAW]))
-WEATHER_TODAY = ArrayCodec(WeatherToday, ("day[d]",) + OBSERVATION_LABELS[TODAY])
-WEATHER_FORECAST = ArrayCodec(WeatherForecast, ("for_day[d]",) + OBSERVATION_LABELS[FORECAST])
+
+
+# --- the typed state messages (crop_sim_interfaces) -----------------------------------------------------------
+
+def field_frame(namespace: str) -> str:
+    """header.frame_id of a simulator's messages: the field, i.e. its namespace without the leading ``/``
+    (``/field7`` -> ``field7``), ``farm`` for a simulator at the root."""
+    return namespace.strip("/") or "farm"
+
+
+def stamped(message, frame_id: str):
+    """``message`` (a crop_sim_interfaces message) with header.frame_id set; returns it."""
+    message.header.frame_id = frame_id
+    return message
+
+
+def fill_crop_state(message: CropState, stamp: Time, episode: int, day: int, wide: list[float], fsolar: float,
+                    mature: bool) -> CropState:
+    """``message`` now carries the day's crop state: ``wide`` is the observation widened to float64 (exact); a
+    family task's missing PAW reading (paw_observed 0) is NaN, not a PAW of 0 mm."""
+    read = len(wide) == PAPER.size or wide[OBS_PAW_OBSERVED] > 0.5
+    message.header.stamp = stamp
+    message.episode, message.day = episode, day
+    message.biomass_t_ha, message.thermal_time_degc_d = wide[OBS_BIOMASS], wide[OBS_THERMAL_TIME]
+    message.paw_mm, message.paw_observed = (wide[OBS_PAW] if read else math.nan), read
+    message.canopy_fsolar, message.mature = float(fsolar), bool(mature)
+    return message
+
+
+def fill_weather(message: Weather, stamp: Time, day: int, values: list[float]) -> Weather:
+    """``message`` now carries the weather of ``day`` (the 8 values in WEATHER_NAMES order)."""
+    message.header.stamp = stamp
+    message.day = day
+    for name, value in zip(WEATHER_NAMES, values):
+        setattr(message, name, value)
+    return message
+
+
+def forecast_noise(message: Forecast, noise) -> Forecast:
+    """``message``'s noise SDs from the scenario's ObservationNoise (set at each reset)."""
+    for field, name in zip(FORECAST_SD_FIELDS, WEATHER_NAMES):
+        setattr(message, field, float(getattr(noise, name)))
+    return message
+
+
+def weather_of(message: Weather) -> list[float]:
+    """The 8 values of a Weather message in WEATHER_NAMES order (the observation's)."""
+    return [getattr(message, name) for name in WEATHER_NAMES]
+
+
+def stamp_date(stamp: Time) -> str:
+    """The farm date (ISO) of a farm-time stamp."""
+    return datetime.fromtimestamp(stamp.sec, timezone.utc).date().isoformat()
+
+
+def step_summary(result: StepResult, observation=None) -> dict:
+    """A StepResult (topic or Step reply) as the dict the Gymnasium bridge gives as ``info`` (``return``: the
+    season's return so far; ``date``: the new day's farm date); with ``observation``, its values as floats."""
+    summary = {"episode": result.episode, "day": result.day, "irrigation_mm": result.irrigation_mm,
+               "reward": result.reward, "terminated": result.terminated, "truncated": result.truncated,
+               "yield_t_ha": result.yield_t_ha, "return": result.episode_return,
+               "command_sequence": result.command_sequence, "date": stamp_date(result.header.stamp),
+               "irrigation_requested_mm": result.irrigation_requested_mm, "reward_unit": result.reward_unit}
+    if observation is not None:
+        summary["observation"] = [float(v) for v in observation]
+    return summary
+
+
+def reset_summary(terms: FarmTerms, observation) -> dict:
+    """A Reset reply's terms and observation as the dict the Gymnasium bridge gives as ``info`` (farm terms
+    NaN/inf as None, as JSON would have them)."""
+    observation = [float(v) for v in observation]
+    return {"episode": terms.episode, "day": int(observation[OBS_DAY]), "date": terms.sowing_date,
+            "scenario": terms.scenario, "seed": None if terms.seed < 0 else terms.seed,
+            "weather_season": terms.weather_season, "weather_source": terms.weather_source,
+            "site_climate": terms.site_climate or None, "max_irrigation_mm": terms.max_irrigation_mm,
+            "potential_yield_t_ha": terms.potential_yield_t_ha, "reward_unit": terms.reward_unit,
+            "yield_value_per_t": terms.yield_value_per_t,
+            "farm_terms": {name: (value if math.isfinite(value) else None)
+                           for name in TERM_FIELDS for value in [getattr(terms, name)]},
+            "observation_size": len(observation), "observation": observation}
 
 
 STATUS_NAME = "crop_sim/irrigation"
@@ -314,16 +350,6 @@ def observation_from_message(message, layout: ObservationLayout | None = None):
 def observation_layout(message) -> ObservationLayout:
     """The layout of an observation message (by its size); ValueError for a size no layout has."""
     return layout_of_size(len(message.data))
-
-
-def step_result_codec(family_task: bool) -> ArrayCodec[StepResult]:
-    """~/step_result's labels name the reward unit: t/ha-based ``[1]`` for the paper's task, USD/ha for a family task."""
-    return FAMILY_STEP_RESULT if family_task else STEP_RESULT
-
-
-def observation_list(observation) -> list[float]:
-    """The float32 observation as JSON-ready floats (float64 widening is exact; JSON keeps float64 exactly)."""
-    return [float(v) for v in observation]
 
 
 def irrigation_command(day: int, mm: float, episode: int | None = None) -> Float64MultiArray:
@@ -373,15 +399,6 @@ def status_values(message: DiagnosticStatus) -> dict:
     for key in ("sequence", "current_day"):
         out[key] = int(values.get(key, "-1"))
     return out
-
-
-def summary_json(summary: dict) -> str:
-    """A step/reset summary as compact JSON (floats as repr: they parse back exactly; NaN/inf as null)."""
-    def clean(v):
-        if isinstance(v, float) and not math.isfinite(v):
-            return None
-        return v
-    return json.dumps({k: clean(v) for k, v in summary.items()}, separators=(",", ":"))
 
 
 def node_status_name(node_name: str) -> str:

@@ -22,9 +22,10 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
 from rclpy.node import Node
+from crop_sim_interfaces.msg import CropState, FarmTerms, Forecast, StepResult, Weather
+from crop_sim_interfaces.srv import Reset, Step
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float32MultiArray, Float64MultiArray
-from std_srvs.srv import Trigger
 
 from . import ros_interface as ri
 from .safe_yaml import YamlInputError, read_yaml
@@ -225,41 +226,41 @@ class SimNode(Node):
 
         # publishers (messages reused: publish() serialises at once)
         self._pub_obs = self.create_publisher(Float32MultiArray, "~/" + ri.OBSERVATION_TOPIC, ri.STATE_QOS)
-        self._pub_biomass = self.create_publisher(Float64MultiArray, "~/" + ri.BIOMASS_TOPIC, ri.STATE_QOS)
-        self._pub_paw = self.create_publisher(Float64MultiArray, "~/" + ri.PAW_TOPIC, ri.STATE_QOS)
-        self._pub_today = self.create_publisher(Float64MultiArray, "~/" + ri.WEATHER_TODAY_TOPIC, ri.STATE_QOS)
-        self._pub_forecast = self.create_publisher(Float64MultiArray, "~/" + ri.WEATHER_FORECAST_TOPIC, ri.STATE_QOS)
-        self._pub_result = self.create_publisher(Float64MultiArray, "~/" + ri.STEP_RESULT_TOPIC, ri.STATE_QOS)
-        self._pub_terms = self.create_publisher(Float64MultiArray, "~/" + ri.FARM_TERMS_TOPIC, ri.STATE_QOS)
+        self._pub_crop = self.create_publisher(CropState, "~/" + ri.CROP_STATE_TOPIC, ri.STATE_QOS)
+        self._pub_today = self.create_publisher(Weather, "~/" + ri.WEATHER_TODAY_TOPIC, ri.STATE_QOS)
+        self._pub_forecast = self.create_publisher(Forecast, "~/" + ri.WEATHER_FORECAST_TOPIC, ri.STATE_QOS)
+        self._pub_result = self.create_publisher(StepResult, "~/" + ri.STEP_RESULT_TOPIC, ri.STATE_QOS)
+        self._pub_terms = self.create_publisher(FarmTerms, "~/" + ri.FARM_TERMS_TOPIC, ri.STATE_QOS)
         self._pub_clock = self._clock_publisher(self.get_parameter("clock_topic").value)
         self._pub_status = self.create_publisher(DiagnosticStatus, "~/" + ri.IRRIGATION_STATUS_TOPIC,
                                                  ri.COMMAND_STATUS_QOS)
         self._pub_diagnostics = self.create_publisher(DiagnosticArray, ri.DIAGNOSTICS_TOPIC, ri.DIAGNOSTICS_QOS)
         self._status_name = ri.node_status_name(self.get_fully_qualified_name())
         self._msg_obs = ri.observation_message(np.zeros(PAPER.size, np.float32))  # relabelled at each reset
-        # Messages reused day after day (publishing serialises at once); the step result's labels follow the task.
-        self._msg_biomass = ri.BIOMASS_READING.labelled()
-        self._msg_paw = ri.PAW_READING.labelled()
-        self._msg_today = ri.WEATHER_TODAY.labelled()
-        self._msg_forecast = ri.WEATHER_FORECAST.labelled()
-        self._result_codec = ri.STEP_RESULT
-        self._msg_result = self._result_codec.labelled()
+        # Messages reused day after day (publishing serialises at once), stamped with the field as frame_id
+        frame = ri.field_frame(self.get_namespace())
+        self._msg_crop = ri.stamped(CropState(), frame)
+        self._msg_today = ri.stamped(Weather(), frame)
+        self._msg_forecast = ri.stamped(Forecast(), frame)
+        ri.stamped(self._msg_forecast.weather, frame)
+        self._msg_result = ri.stamped(StepResult(), frame)
+        self._msg_terms = ri.stamped(FarmTerms(), frame)
 
         self.create_subscription(Float64MultiArray, "~/" + ri.IRRIGATION_TOPIC, self._on_irrigation,
                                  ri.COMMAND_SUBSCRIPTION_QOS)
         self.create_subscription(Float64MultiArray, "~/" + ri.IRRIGATION_STEP_TOPIC, self._on_irrigation_step,
                                  ri.COMMAND_SUBSCRIPTION_QOS)
-        self.create_service(Trigger, "~/" + ri.STEP_SERVICE, self._on_step)
-        self.create_service(Trigger, "~/" + ri.RESET_SERVICE, self._on_reset)
+        self.create_service(Step, "~/" + ri.STEP_SERVICE, self._on_step)
+        self.create_service(Reset, "~/" + ri.RESET_SERVICE, self._on_reset)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self.create_timer(STATUS_PERIOD_S, self._on_status_timer)
         self._timer = None
         self._configure_timer()
 
-        ok, summary = self._reset()
-        if not ok:
-            raise StartupError(summary["error"])
+        error = self._reset()
+        if error:
+            raise StartupError(error)
         scenario = self._session.env.scenario
         files = (f", weather files from {scenario.resolved_data_dir}" if scenario.weather.kind != "generator"
                  else "")
@@ -348,9 +349,9 @@ class SimNode(Node):
 
     # --- commands ----------------------------------------------------------------------------------------
 
-    def _accept(self, values: list, and_step: bool = False) -> bool:
+    def _accept(self, values: list, and_step: bool = False):
         """The session checks a command (an accepted one becomes the day's pending command); its fate goes to
-        ~/irrigation_status and refusals to the log. Returns whether it was accepted."""
+        ~/irrigation_status and refusals to the log. Returns the session's CommandOutcome."""
         outcome = self._session.command(values, and_step, lockstep=self._mode() == "lockstep")
         if not outcome.accepted:
             where = "irrigation_step" if and_step else "irrigation"
@@ -363,7 +364,7 @@ class SimNode(Node):
         if not outcome.accepted or not and_step:  # an accepted stepping command's fate is its ~/step_result
             self._pub_status.publish(ri.status_message(outcome.accepted, outcome.text, outcome.day, outcome.mm,
                                                        outcome.sequence, outcome.current_day))
-        return outcome.accepted
+        return outcome
 
     def _on_irrigation(self, message: Float64MultiArray) -> None:
         with self._lock:
@@ -374,40 +375,55 @@ class SimNode(Node):
         (lockstep mode). One topic round trip per day instead of a command, its acknowledgement and a service
         call; the outcome is on ~/step_result and ~/observation (and ~/irrigation_status if refused)."""
         with self._lock:
-            if self._accept(list(message.data), and_step=True):
-                ok, summary = self._step(defer=True)
-                if not ok:
-                    self.get_logger().error(ri.summary_json(summary))
+            if self._accept(list(message.data), and_step=True).accepted:
+                error = self._step(defer=True)
+                if error:
+                    self.get_logger().error(error)
 
     # --- step --------------------------------------------------------------------------------------------
 
-    def _on_step(self, request, response):
-        if self._mode() != "lockstep":
-            response.success = False
-            response.message = ri.summary_json({"error": "mode is free_running: the node steps by itself; set "
-                                                "mode:=lockstep to step by service",
-                                                "episode": self._session.episode, "day": self._session.day})
+    def _on_step(self, request: Step.Request, response: Step.Response) -> Step.Response:
+        """Today's command from the request (``day``/``episode`` -1: the current one; or, with
+        ``use_pending_command``, the one accepted on ~/irrigation), checked as a command on ~/irrigation_step is,
+        then the day stepped. The reply carries the day's result and observation."""
+        with self._lock:
+            session = self._session
+            error = None
+            if self._mode() != "lockstep":
+                error = "mode is free_running: the node steps by itself; set mode:=lockstep to step by service"
+            elif request.use_pending_command:
+                error = self._step(defer=True)
+            else:
+                day = session.day if request.day == Step.Request.ANY else request.day
+                command = [float(day), request.irrigation_mm]
+                if request.episode != Step.Request.ANY:
+                    command.append(float(request.episode))
+                outcome = self._accept(command, and_step=True)
+                error = outcome.text if not outcome.accepted else self._step(defer=True)
+            if error:
+                response.success, response.message = False, error
+                response.result.episode, response.result.day = session.episode, session.day
+                return response
+            response.success, response.message = True, self._log_error
+            response.result = self._msg_result
+            response.observation = session.obs
             return response
-        response.success, summary = self._step(defer=True)
-        response.message = ri.summary_json(summary)
-        return response
 
     def _on_tick(self) -> None:
         if not self._session.ended:
-            ok, summary = self._step(free_running=True)
-            if not ok:
-                self.get_logger().error(ri.summary_json(summary))
+            error = self._step(free_running=True)
+            if error:
+                self.get_logger().error(error)
 
-    def _step(self, defer: bool = False, free_running: bool = False) -> tuple[bool, dict]:
-        """Advance one day; (success, summary). The summary is a dict: callers that answer a service encode
-        it (JSON costs time the topic path does not need to spend)."""
+    def _step(self, defer: bool = False, free_running: bool = False) -> str | None:
+        """Advance one day and publish it; None, or why not (nothing changed)."""
         with self._lock:
             session = self._session
             outcome = session.step()
             if not outcome.ok:
                 if outcome.environment_failed:
                     self.get_logger().error(f"step of day {session.day} failed: {outcome.error}")
-                return False, {"error": outcome.error, "episode": outcome.episode, "day": outcome.day}
+                return outcome.error
             day, info = outcome.day_before, outcome.info
             if outcome.cut:  # the capacity or the quota cut the command (it was within the action bound)
                 self._pub_status.publish(ri.status_message(True, session.cut_reason(outcome), day,
@@ -419,7 +435,7 @@ class SimNode(Node):
                         f"free running: day {day} of episode {session.episode} passed without a command (0 mm); "
                         f"{session.days_without_command} of {day + 1} days so far (logged at most once a second; "
                         "counted on /diagnostics)", throttle_duration_sec=1.0)
-            log_error = self._write_log_row(
+            self._write_log_row(
                 {**self._log_common(day, outcome.obs_before),
                  "command_sequence": outcome.sequence, "irrigation_mm": outcome.applied_mm,
                  "irrigation_requested_mm": outcome.requested_mm, "reward": outcome.reward,
@@ -430,22 +446,16 @@ class SimNode(Node):
                  "end_true_biomass_t_ha": info["true_biomass_t_ha"], "end_true_paw_mm": info["true_paw_mm"],
                  "end_thermal_time_degc_d": info["thermal_time_degc_d"], "end_fsolar": info["fsolar"],
                  "end_yield_t_ha": info["yield_t_ha"], "end_mature": info["mature"]}, day)
-            result = ri.StepResult(session.episode, session.day, outcome.applied_mm, outcome.reward,
-                                   outcome.terminated, outcome.truncated, outcome.yield_t_ha, session.episode_return,
-                                   outcome.sequence)
-            self._publish(result, defer=defer)
+            self._fill_result(outcome.applied_mm, outcome.requested_mm, outcome.reward, outcome.terminated,
+                              outcome.truncated, outcome.yield_t_ha, outcome.sequence)
+            self._publish(info, defer=defer)
             if session.ended:
                 self.get_logger().info(
                     f"episode {session.episode} ended: {session.end_reason}, yield {outcome.yield_t_ha:.3f} t/ha, "
                     f"return {session.episode_return:.4f}; {session.days_without_command} of {session.day} days "
                     "without a command")
                 self._publish_status()
-            summary = {**result.summary(), "date": info["date"], "irrigation_requested_mm": outcome.requested_mm,
-                       "reward_unit": session.env.scenario.reward_unit,
-                       "observation": ri.observation_list(outcome.obs)}
-            if log_error:
-                summary["log_error"] = log_error
-            return True, summary
+            return None
 
     def _write_log_row(self, row: dict, day: int) -> str | None:
         """Append the day's row to the season log; None, or why it could not be written (the day stands; the
@@ -482,10 +492,29 @@ class SimNode(Node):
 
     # --- reset -------------------------------------------------------------------------------------------
 
-    def _on_reset(self, request, response):
-        response.success, summary = self._reset()
-        response.message = ri.summary_json(summary)
-        return response
+    def _on_reset(self, request: Reset.Request, response: Reset.Response) -> Reset.Response:
+        """A new season: the request's scenario set as the ``scenario`` parameter (for good), its seed and weather
+        season for this season only (FROM_PARAMETER: the parameters'). The reply carries the terms and day 0's
+        observation."""
+        with self._lock:
+            error = self._reset_request_problem(request)
+            if not error and request.scenario.strip():
+                result = self.set_parameters([rclpy.parameter.Parameter("scenario", value=request.scenario)])[0]
+                error = None if result.successful else f"scenario: {result.reason}"
+            if not error:
+                error = self._reset(seed=request.seed, season=request.weather_season)
+            response.success, response.message = not error, error or ""
+            if not error:
+                response.terms = self._msg_terms
+                response.observation = self._session.obs
+            return response
+
+    @staticmethod
+    def _reset_request_problem(request: Reset.Request) -> str | None:
+        for name in ("seed", "weather_season"):
+            if getattr(request, name) < Reset.Request.FROM_PARAMETER:
+                return (f"{name}: {getattr(request, name)} is neither >= 0, DRAW (-1) nor FROM_PARAMETER (-2)")
+        return None
 
     def _open_log(self, path: Path) -> SeasonLog:
         log = SeasonLog(path)
@@ -494,10 +523,17 @@ class SimNode(Node):
                                       "row cut short, e.g. by a crash) before appending")
         return log
 
-    def _reset(self) -> tuple[bool, dict]:
+    def _reset(self, seed: int = Reset.Request.FROM_PARAMETER, season: int = Reset.Request.FROM_PARAMETER
+               ) -> str | None:
+        """A new season (``seed``/``season``: a value, DRAW, or FROM_PARAMETER); None, or why not (the current
+        season is unchanged)."""
         with self._lock:
             session = self._session
             values = self._values()
+            if seed == Reset.Request.FROM_PARAMETER:
+                seed = values["seed"]
+            if season == Reset.Request.FROM_PARAMETER:
+                season = values["weather_season"]
             config = self._config(values)
             env, log, log_path = session.env, self._log, self._log_path
             try:
@@ -509,50 +545,66 @@ class SimNode(Node):
                 wanted_log = self._resolve_log_path()
                 if wanted_log != self._log_path:
                     log, log_path = self._open_log(wanted_log), wanted_log
-                seed, season = values["seed"], values["weather_season"]
                 info = session.reset(env, seed if seed >= 0 else None, season if season >= 0 else None)
             except Exception as error:  # noqa: BLE001 - the old season stays as it was
                 if log is not self._log:
                     log.close()
                 message = f"reset failed, the current season is unchanged: {one_line(error)}"
                 self.get_logger().error(message)
-                return False, {"error": message, "episode": session.episode, "day": session.day}
+                return message
             self._env_config = config
             if log is not self._log:
                 self._log.close()
                 self._log, self._log_path = log, log_path
-            family = env.scenario.is_family_task
             self._msg_obs = ri.observation_message(session.obs)  # the layout's labels (20 or 29 values)
-            self._result_codec = ri.step_result_codec(family)
-            self._msg_result = self._result_codec.labelled()
-            terms = ri.FarmTerms(session.episode, *session.terms)
-            self._pub_terms.publish(ri.FARM_TERMS.message(terms))
-            self._publish(ri.StepResult(session.episode, session.day, 0.0, 0.0, False, False, 0.0, 0.0, -1))
+            self._fill_terms(info)
+            ri.forecast_noise(self._msg_forecast, env.scenario.noise)
+            self._pub_terms.publish(self._msg_terms)
+            self._fill_result(0.0, 0.0, 0.0, False, False, 0.0, -1)
+            self._publish(info)
             self._publish_status()
-            summary = {"episode": session.episode, "day": session.day, "date": info["date"],
-                       "scenario": env.scenario.name, "seed": session.seed, "weather_season": info["season"],
-                       "weather_source": info["weather_source"],
-                       "site_climate": env.scenario.weather.climate or None, "max_irrigation_mm": session.max_mm,
-                       "potential_yield_t_ha": info["potential_yield_t_ha"], "reward_unit": env.scenario.reward_unit,
-                       "yield_value_per_t": float(info["yield_value_per_t"]),
-                       "farm_terms": {name: (value if math.isfinite(value) else None)
-                                      for name, value in terms._asdict().items() if name != "episode"},
-                       "observation_size": len(session.obs), "observation": ri.observation_list(session.obs)}
             self.get_logger().info(f"episode {session.episode}: {env.scenario.name}, weather "
                                    f"{info['weather_source']}, sown {info['date']}, seed {session.seed}")
-            return True, summary
+            return None
+
+    def _fill_terms(self, info: dict) -> None:
+        """The reset's FarmTerms (reused message) from the session and the environment's reset ``info``."""
+        session, scenario, terms = self._session, self._session.env.scenario, self._msg_terms
+        terms.header.stamp = ri.sim_time(session.sowing, 0)
+        terms.episode, terms.scenario = session.episode, scenario.name
+        terms.seed = -1 if session.seed is None else session.seed
+        terms.weather_season, terms.weather_source = info["season"], info["weather_source"]
+        terms.site_climate, terms.sowing_date = scenario.weather.climate or "", info["date"]
+        terms.reward_unit, terms.max_irrigation_mm = scenario.reward_unit, session.max_mm
+        terms.potential_yield_t_ha = info["potential_yield_t_ha"]
+        terms.yield_value_per_t = float(info["yield_value_per_t"])
+        for name, value in zip(ri.TERM_FIELDS, session.terms):
+            setattr(terms, name, float(value))
+
+    def _fill_result(self, applied_mm: float, requested_mm: float, reward: float, terminated: bool,
+                     truncated: bool, yield_t_ha: float, sequence: int) -> None:
+        """The day's StepResult (reused message) for the session's current day."""
+        session, result = self._session, self._msg_result
+        result.header.stamp = ri.sim_time(session.sowing, session.day)
+        result.episode, result.day = session.episode, session.day
+        result.irrigation_mm, result.irrigation_requested_mm = float(applied_mm), float(requested_mm)
+        result.reward, result.episode_return = float(reward), float(session.episode_return)
+        result.reward_unit = session.env.scenario.reward_unit
+        result.terminated, result.truncated = bool(terminated), bool(truncated)
+        result.yield_t_ha, result.command_sequence = float(yield_t_ha), int(sequence)
 
     # --- publishing --------------------------------------------------------------------------------------
 
-    def _publish(self, result: ri.StepResult, defer: bool = False) -> None:
-        """Publish the current day: the observation and the step result at once; the other topics at once, or
-        (``defer``, when a client waits) right after this callback, so that the client waits less."""
+    def _publish(self, info: dict, defer: bool = False) -> None:
+        """Publish the current day (``info``: the environment's, for the model state): the observation and the
+        step result at once; the other topics at once, or (``defer``, when a client waits) right after this
+        callback, so that the client waits less."""
         self._flush_deferred()  # keep each topic in day order
         session = self._session
         self._msg_obs.data = session.obs
         self._pub_obs.publish(self._msg_obs)
-        self._pub_result.publish(self._result_codec.fill(self._msg_result, result))
-        rest = (session.obs, session.day, session.sowing)
+        self._pub_result.publish(self._msg_result)
+        rest = (session.obs, session.episode, session.day, session.sowing, info["fsolar"], info["mature"])
         if defer and self.executor is not None:
             self._deferred.append(rest)
             self.executor.create_task(self._on_deferred)  # runs after this callback (and its response)
@@ -567,19 +619,17 @@ class SimNode(Node):
         with self._lock:
             self._flush_deferred()
 
-    def _publish_rest(self, obs, day, sowing) -> None:
+    def _publish_rest(self, obs, episode: int, day: int, sowing, fsolar: float, mature: bool) -> None:
         wide = obs.astype(np.float64).tolist()
-        self._pub_biomass.publish(ri.BIOMASS_READING.fill(self._msg_biomass,
-                                                          ri.BiomassReading(day, wide[ri.OBS_BIOMASS])))
-        # a family task's missing reading (paw_observed 0: a dropout, or no sensor) is NaN, not a PAW of 0 mm
-        read = len(wide) == PAPER.size or wide[ri.OBS_PAW_OBSERVED] > 0.5
-        self._pub_paw.publish(ri.PAW_READING.fill(self._msg_paw,
-                                                  ri.PawReading(day, wide[ri.OBS_PAW] if read else math.nan)))
-        self._pub_today.publish(ri.WEATHER_TODAY.fill(self._msg_today, ri.WeatherToday(day, *wide[ri.OBS_TODAY])))
-        self._pub_forecast.publish(ri.WEATHER_FORECAST.fill(self._msg_forecast,
-                                                            ri.WeatherForecast(day + 1, *wide[ri.OBS_FORECAST])))
+        today = ri.sim_time(sowing, day)
+        self._pub_crop.publish(ri.fill_crop_state(self._msg_crop, today, episode, day, wide, fsolar, mature))
+        self._pub_today.publish(ri.fill_weather(self._msg_today, today, day, wide[ri.OBS_TODAY]))
+        forecast = self._msg_forecast
+        forecast.header.stamp = today
+        ri.fill_weather(forecast.weather, ri.sim_time(sowing, day + 1), day + 1, wide[ri.OBS_FORECAST])
+        self._pub_forecast.publish(forecast)
         if self._pub_clock is not None:
-            self._pub_clock.publish(ri.clock_message(sowing, day))
+            self._pub_clock.publish(Clock(clock=today))
 
     def _on_status_timer(self) -> None:
         with self._lock:  # a heartbeat, as diagnostic_updater's: a monitor marks a silent node stale

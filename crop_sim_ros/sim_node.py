@@ -4,7 +4,7 @@
     python -m crop_sim_ros.sim_node [--ros-args ...]        # the same without a ROS workspace
     sim_node --help                                         # the parameters; starts nothing
 
-The node holds exactly the environment the offline users use and converts to and from standard messages;
+The node holds exactly the environment the offline users use and converts to and from messages (the typed ``crop_sim_interfaces`` and standard ones);
 it computes nothing of its own beyond bookkeeping (the episode counter, the pending command, counters, the
 log). Names, message layouts and QoS are in :mod:`crop_sim_ros.ros_interface`; the node itself is
 :class:`crop_sim_ros.sim.SimNode`. This module is the executable: it imports only the standard library until
@@ -12,17 +12,17 @@ its signal handlers are installed, so that a signal at any moment after the star
 
 Day protocol (lockstep, the default)
 ------------------------------------
-After a reset the field is on day 0 (the sowing day) and the node publishes day 0's observation. A client
-publishes an irrigation command ``[day, mm]`` (or ``[day, mm, episode]``) on ``~/irrigation``, then calls
-``~/step``: the node applies the latest command accepted for the current day, advances exactly one day, and
-publishes the new day. Each command is applied at most once and only to the day it names:
+After a reset the field is on day 0 (the sowing day) and the node publishes day 0's state. A client calls
+``~/step`` (``crop_sim_interfaces/srv/Step``) with today's ``irrigation_mm`` (and optionally the ``day`` and
+``episode`` it is meant for): the node checks the command, applies it, advances exactly one day, answers with
+the day's ``StepResult`` and observation, and publishes the new day. A client may instead publish a command
+``[day, mm]`` (or ``[day, mm, episode]``) on ``~/irrigation`` ahead of the day (free-running mode's way); in
+lockstep a step's own command replaces it. Each command is applied at most once and only to the day it names:
 
 - a command for a past day, a future day, another episode, or after the season ended is rejected;
 - NaN, infinite, negative or over-limit (> the scenario's ``max_irrigation_mm``) amounts are rejected;
 - rejected commands are logged and reported on ``~/irrigation_status`` (level ERROR, with the reason);
-  accepted ones are reported too (level OK), so a client can wait for the acknowledgement before it calls
-  ``~/step`` (the command topic and the step service are separate channels: without that wait a step
-  could overtake the command);
+  accepted ones are reported too (level OK); a refused ``~/step`` says why in its reply;
 - a step with no accepted command for the day applies 0 mm (counted: ``days_without_command`` in the node's
   status on ``/diagnostics``; in free-running mode such a day is also a warning in the node's log).
 
@@ -35,13 +35,13 @@ A client that drives the season can do both in one message: a command on ``~/irr
 the same way and, if accepted, the day is stepped at once (one topic round trip per day; the outcome is on
 ``~/step_result`` and ``~/observation``; a repeated message cannot step twice, its day being past by then).
 
-The ``~/step`` response (std_srvs/Trigger) message is a JSON summary of the new day: episode, day, date,
-irrigation_mm (applied), irrigation_requested_mm, reward, return, reward_unit (``t/ha`` for the paper's task,
-``USD/ha`` for a family task), terminated, truncated, yield_t_ha, command_sequence and the observation (the
-float32 values as exact decimals), and ``log_error`` if the day's row could not be written to the season
-log; ``~/reset`` answers likewise (episode, day 0, scenario, seed, weather, site_climate: the fitted weather
-generator of real seasons' site as the scenario names it, null for none or for generated weather, reward_unit,
-farm_terms: the season's terms as on ``~/farm_terms``, null for none, observation_size and the observation).
+The ``~/step`` reply carries the day's ``StepResult`` (episode, day, irrigation_mm applied,
+irrigation_requested_mm, reward, episode_return, reward_unit: ``t/ha`` for the paper's task, ``USD/ha`` for a
+family task, terminated, truncated, yield_t_ha, command_sequence; stamped in farm time) and the float32
+observation, exactly; its ``message`` names the season-log failure if the day's row could not be written.
+``~/reset`` (``crop_sim_interfaces/srv/Reset``: an optional scenario, set as the parameter, and this season's
+seed and weather_season, by default the parameters') answers with the season's ``FarmTerms`` (as on
+``~/farm_terms``) and day 0's observation.
 
 Family tasks
 ------------
@@ -52,11 +52,11 @@ each reset. The irrigation applied is min(command, capacity, quota left): a comm
 quota cut is accepted, and after its step ``~/irrigation_status`` says so (level WARN, with the mm applied).
 A scenario change between the paper's task and a family task takes effect at the next reset: every topic
 then carries the new layout. A refusal is
-``success: false`` with ``{"error": ...}``; the state is then unchanged.
+``success: false`` with the reason in ``message``; the state is then unchanged.
 
 Commands, steps, resets and the free-running timer all run on one single-threaded executor, and every
 state change is also taken under one lock, so a command and a step never interleave. After a step, the
-observation and ``~/step_result`` are published at once; the other topics (biomass, PAW, weather, /clock)
+observation and ``~/step_result`` are published at once; the other topics (crop state, weather, /clock)
 right after the callback has returned (so the caller waiting for the step waits less), always in day order.
 ``/clock`` uses the QoS of ROS time sources (best effort, volatile, depth 1): a node started with
 ``use_sim_time`` reads farm time from the first step after it started (0 until then). Farms side by side

@@ -10,7 +10,6 @@ process it killed, and only those).
 from __future__ import annotations
 
 import csv
-import json
 import os
 import time
 import uuid
@@ -28,8 +27,8 @@ os.environ.pop("ROS_LOCALHOST_ONLY", None)
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
 from rcl_interfaces.srv import GetParameters, SetParameters  # noqa: E402
-from std_msgs.msg import Float64MultiArray  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
+from crop_sim_interfaces.msg import StepResult  # noqa: E402
+from crop_sim_interfaces.srv import Reset, Step  # noqa: E402
 
 from crop_agent_ros.ros.spin import PrivateRos, call, wait_for_service  # noqa: E402
 from crop_agent_ros.ros.sim_client import SimClient  # noqa: E402
@@ -73,7 +72,21 @@ def read_log(path: Path) -> list[dict]:
 
 
 def summary(response) -> dict:
-    return json.loads(response.message)
+    """A typed Step or Reset reply as a dict: ``success``; on success the result's (or the terms') fields as
+    ri.step_summary / ri.reset_summary give them; else ``error`` (the reason) and the current episode and day."""
+    if not response.success:
+        result = getattr(response, "result", None)
+        where = {"episode": result.episode, "day": result.day} if result is not None else {}
+        return {"success": False, "error": response.message, **where}
+    if isinstance(response, Reset.Response):
+        return {"success": True, **ri.reset_summary(response.terms, response.observation)}
+    return {"success": True, **ri.step_summary(response.result, response.observation),
+            **({"log_error": response.message} if response.message else {})}
+
+
+def pending_step() -> Step.Request:
+    """A ~/step request that applies the command accepted on ~/irrigation (none: 0 mm)."""
+    return Step.Request(use_pending_command=True)
 
 
 # --- clients of a simulator (these import rclpy) ------------------------------------------------------------
@@ -90,7 +103,7 @@ def step_client(ros, name):
     (ri.SERVICE_CLIENT_QOS): with the default depth of 10, a client starved of CPU while another client of the
     same simulator got more than 10 answers lost its own (the day was stepped, the call timed out: 5 of 60 runs
     of the two-client test with the other core loaded, 0 of 25 with this QoS)."""
-    step = ros.node.create_client(Trigger, f"{name}/step", qos_profile=ri.SERVICE_CLIENT_QOS)
+    step = ros.node.create_client(Step, f"{name}/step", qos_profile=ri.SERVICE_CLIENT_QOS)
     probe = ros.node.create_client(GetParameters, f"{name}/get_parameters")
     wait_for_service(ros.executor, step, 30)
     wait_for_service(ros.executor, probe, 30)
@@ -125,7 +138,8 @@ def set_parameter(ros, name, **values):
 
 
 def raw_step(ros, name, timeout: float = 5.0) -> dict:
-    """One ~/step call (no command) from ``ros``'s node, while no other client steps this simulator.
+    """One ~/step call (the pending command of ~/irrigation) from ``ros``'s node, while no other client steps
+    this simulator.
 
     A service request sent just after discovery can be lost in DDS (the server's reader had not yet matched
     the new client's writer; ROS 2 services have no retry). So if no response comes, this looks at the
@@ -134,25 +148,20 @@ def raw_step(ros, name, timeout: float = 5.0) -> dict:
     cache = ros.__dict__.setdefault("_raw_step", {})
     if name not in cache:
         latest: list = []
-        ros.node.create_subscription(Float64MultiArray, f"{name}/step_result", lambda m: latest.append(list(m.data)),
-                                     ri.LATCHED_READER_QOS)
+        ros.node.create_subscription(StepResult, f"{name}/step_result", latest.append, ri.LATCHED_READER_QOS)
         cache[name] = (step_client(ros, name), latest)
         ros.spin_until(lambda: latest, 20, "the latched step result")
     client, latest = cache[name]
-    before = latest[-1][:2]  # (episode, day)
+    before = (latest[-1].episode, latest[-1].day)
     for _ in range(5):
-        future = client.call_async(Trigger.Request())
+        future = client.call_async(pending_step())
         try:
             ros.spin_until(future.done, timeout, "the step response")
-            response = future.result()
-            return {"success": response.success, **json.loads(response.message)}
+            return summary(future.result())
         except TimeoutError:
             client.remove_pending_request(future)
-            if latest[-1][:2] != before:  # stepped, the response was lost
-                r = latest[-1]
-                return {"success": True, "episode": int(r[0]), "day": int(r[1]), "irrigation_mm": r[2],
-                        "reward": r[3], "terminated": r[4] == 1.0, "truncated": r[5] == 1.0,
-                        "command_sequence": int(r[8])}
+            if (latest[-1].episode, latest[-1].day) != before:  # stepped, the response was lost
+                return {"success": True, **ri.step_summary(latest[-1])}
     raise TimeoutError(f"no step of {name} after 5 attempts")
 
 

@@ -21,7 +21,7 @@ import pytest
 import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exists)
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rcl_interfaces.srv import GetParameters  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
+from crop_sim_interfaces.srv import Step  # noqa: E402
 
 from crop_agent_ros.ros.spin import PrivateRos, call, wait_for_service  # noqa: E402
 from crop_agent_ros.ros.process import NodeProcess, isolated_ros_env  # noqa: E402
@@ -40,7 +40,7 @@ def test_reactive_agent_commands_every_day(tmp_path):
             accepted = []
             status = ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
                                                   lambda m: accepted.append(ri.status_values(m)), ri.READER_QOS)
-            step = ros.node.create_client(Trigger, f"{name}/step")
+            step = ros.node.create_client(Step, f"{name}/step")
             wait_for_service(ros.executor, step, 30)
             ros.spin_until(lambda: status.get_publisher_count() >= 1, 30, "the status topic")
             agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="agent_node",
@@ -49,8 +49,8 @@ def test_reactive_agent_commands_every_day(tmp_path):
             for day in range(10):  # the agent commands each day as soon as it sees the day's observation
                 ros.spin_until(lambda: any(a["accepted"] and a["day"] == day for a in accepted), 30,
                                f"the agent's command for day {day}")
-                response = call(ros.executor, step, Trigger.Request())
-                assert response.success and json.loads(response.message)["irrigation_mm"] == 7.5
+                response = call(ros.executor, step, ros_support.pending_step())
+                assert response.success and response.result.irrigation_mm == 7.5
         rows = ros_support.read_log(log)
         assert [(int(r["day"]), float(r["irrigation_mm"])) for r in rows] == [(d, 7.5) for d in range(10)]
     finally:
@@ -310,3 +310,52 @@ def test_ctrl_c_to_the_farm_stops_both_nodes_without_traceback(tmp_path):
             farm.communicate()
     assert farm.returncode == 128 + signal.SIGINT and "Traceback" not in stdout + stderr, (stdout, stderr)
     assert processes_tagged(tag) == []  # both nodes stopped (each runs in a session of its own)
+
+
+def test_run_season_action_grows_a_season_with_feedback_every_day(tmp_path):
+    """~/run_season of a reactive agent: a goal (seed, policy constant) grows one season through the simulator's
+    typed services; one feedback per day, in day order, the water so far; the result agrees with the season
+    log. A goal with an unknown policy is aborted with the reason."""
+    from crop_sim_interfaces.action import RunSeason
+    from rclpy.action import ActionClient
+
+    sim, name, log = ros_support.start_sim(tmp_path, params={"seed": 12})
+    agent_name = name.rsplit("/", 1)[0] + "/crop_agent"
+    agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="agent_node",
+                        log_path=tmp_path / "agent.out",
+                        ros_args=["-r", f"__ns:={name.rsplit('/', 1)[0]}", "-p", f"sim_node:={name}",
+                                  "-p", "policy:=zero"])
+    try:
+        with PrivateRos(f"goal_{uuid.uuid4().hex[:6]}") as ros:
+            client = ActionClient(ros.node, RunSeason, f"{agent_name}/run_season",
+                                  feedback_sub_qos_profile=ri.COMMAND_SUBSCRIPTION_QOS)
+            ros.spin_until(client.server_is_ready, 60, "the run_season action server")
+
+            def run(goal):
+                feedback = []
+                sent = client.send_goal_async(goal, feedback_callback=lambda m: feedback.append(m.feedback))
+                ros.spin_until(sent.done, 30, "the goal's acceptance")
+                assert sent.result().accepted
+                done = sent.result().get_result_async()
+                ros.spin_until(done.done, 120, "the season")
+                days = done.result().result.days
+                ros.spin_until(lambda: len(feedback) >= days, 10, "every day's feedback")  # a topic: may trail
+                return done.result(), feedback
+
+            answer, feedback = run(RunSeason.Goal(seed=5, policy="constant"))
+            result = answer.result
+            assert answer.status == 4 and result.success, result.message  # SUCCEEDED
+            assert [f.step.day for f in feedback] == list(range(1, result.days + 1))
+            assert all(f.step.irrigation_mm == 10.0 and f.water_mm == 10.0 * f.step.day for f in feedback)
+            assert result.water_mm == 10.0 * result.days and result.yield_t_ha > 0 and result.reward_unit == "t/ha"
+            rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == result.episode]
+            assert len(rows) == result.days and all(r["seed"] == "5" for r in rows)
+            assert float(rows[-1]["episode_return"]) == result.episode_return
+            assert float(rows[-1]["end_yield_t_ha"]) == result.yield_t_ha
+
+            refused, feedback = run(RunSeason.Goal(policy="no-such-policy"))
+            assert refused.status == 6 and not refused.result.success and not feedback  # ABORTED
+            assert "no-such-policy" in refused.result.message
+    finally:
+        assert agent.stop() == 0, agent.output()
+        assert sim.stop() == 0, sim.output()

@@ -1,85 +1,106 @@
-"""The ROS edge's array codecs (crop_sim_ros.ros_interface.ArrayCodec): each Float64MultiArray the simulator
-publishes is declared once as a typed record; writing and reading it round-trip through the wire format, a
-message of the wrong size is refused by name, and the step's JSON summary decodes into the same record."""
+"""The ROS edge's message fillers and readers (crop_sim_ros.ros_interface): the typed crop_sim_interfaces
+messages carry the observation's values exactly, stamped in farm time with the field as frame, through the
+wire format; the step and reset replies read back into the bridge's info dicts; the one Float64MultiArray
+left (the irrigation command) keeps its codec."""
 
 from __future__ import annotations
 
 import math
+from datetime import date
 
+import numpy as np
 import pytest
+from crop_sim_interfaces.msg import CropState, FarmTerms, Forecast, StepResult, Weather
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64MultiArray
 
 from crop_sim_ros import ros_interface as ri
-
-CODECS = {
-    "step_result": (ri.STEP_RESULT, ri.StepResult(3, 41, 7.25, -1.5, False, True, 0.0, 812.5, 17)),
-    "family_step_result": (ri.FAMILY_STEP_RESULT, ri.StepResult(1, 150, 0.0, 16000.25, True, False, 18.2, 15432.0, -1)),
-    "farm_terms": (ri.FARM_TERMS, ri.FarmTerms(2, 218.0, 1.25, 0.0, math.inf, 8.0)),
-    "irrigation": (ri.IRRIGATION, ri.IrrigationCommand(12, 4.5, 2)),
-    "biomass": (ri.BIOMASS_READING, ri.BiomassReading(12, 3.75)),
-    "paw": (ri.PAW_READING, ri.PawReading(12, math.nan)),
-    "weather_today": (ri.WEATHER_TODAY, ri.WeatherToday(12, 28.5, 11.0, 19.75, 2.5, 24.0, 369.0, 12.5, 2.25)),
-    "weather_forecast": (ri.WEATHER_FORECAST, ri.WeatherForecast(13, 30.0, 12.0, 21.0, 0.0, 25.5, 369.0, 13.0, 3.0)),
-}
+from crop_sim_ros.task.layout import EXTENDED, PAPER, WEATHER_NAMES
+from crop_sim_ros.task.scenario import ObservationNoise
 
 
-def same(a, b) -> bool:
-    return all(x == y or (isinstance(x, float) and math.isnan(x) and math.isnan(y)) for x, y in zip(a, b, strict=True))
+def wire(message):
+    return deserialize_message(serialize_message(message), type(message))
 
 
-@pytest.mark.parametrize("name", sorted(CODECS))
-def test_a_record_round_trips_through_the_wire(name):
-    codec, record = CODECS[name]
-    message = codec.message(record)
-    assert message.layout.dim[0].label == ",".join(codec.labels) and message.layout.dim[0].size == len(record)
-    back = codec.read(deserialize_message(serialize_message(message), Float64MultiArray))
-    assert type(back) is codec.record and same(back, record)
-    # the field types survive: whole numbers come back as int, flags as bool
-    for field, value in zip(back._fields, back):
-        assert type(value) is type(getattr(record, field)), field
-    # a reused message carries the next record
-    other = record._replace(**{record._fields[0]: 99})
-    assert codec.read(codec.fill(message, other))[0] == 99
-    blank = codec.labelled()  # labelled before its first day
-    assert blank.layout.dim[0].label == message.layout.dim[0].label and len(blank.data) == 0
-    assert same(codec.read(codec.fill(blank, record)), record)
+def observation(layout, seed: int = 0) -> np.ndarray:
+    """A float32 observation with values that float64 would round differently (0.1-like fractions)."""
+    return (np.random.default_rng(seed).random(layout.size) * 40 + 0.1).astype(np.float32)
 
 
-def test_labels_name_every_field_with_its_unit():
-    for codec, record in CODECS.values():
-        assert len(codec.labels) == len(record._fields)
-        assert all(label.endswith("]") and "[" in label for label in codec.labels)
-    assert ri.STEP_RESULT.labels[3] == "reward[1]" and ri.FAMILY_STEP_RESULT.labels[3] == "reward[USD/ha]"
-    assert ri.WEATHER_TODAY.labels[1:] == ri.OBSERVATION_LABELS[ri.OBS_TODAY]
-    assert ri.WeatherToday._fields[1] == "tmax_degc" and ri.WeatherForecast._fields[1] == "forecast_tmax_degc"
+def test_crop_state_carries_the_observation_exactly_and_a_missing_reading_as_nan():
+    obs = observation(PAPER)
+    stamp = ri.sim_time(date(2000, 4, 1), 12)
+    message = wire(ri.fill_crop_state(ri.stamped(CropState(), "field7"), stamp, 3, 12,
+                                      obs.astype(np.float64).tolist(), 0.625, False))
+    assert (message.header.frame_id, message.header.stamp.sec, message.episode, message.day) == ("field7",
+                                                                                                   stamp.sec, 3, 12)
+    assert np.float32(message.biomass_t_ha) == obs[ri.OBS_BIOMASS] and message.biomass_t_ha == float(obs[0])
+    assert message.paw_mm == float(obs[ri.OBS_PAW]) and message.paw_observed
+    assert message.thermal_time_degc_d == float(obs[ri.OBS_THERMAL_TIME])
+    assert (message.canopy_fsolar, message.mature) == (0.625, False)
+    family = observation(EXTENDED)
+    family[ri.OBS_PAW_OBSERVED] = 0.0  # a dropout
+    missing = ri.fill_crop_state(CropState(), stamp, 3, 12, family.astype(np.float64).tolist(), 0.5, True)
+    assert math.isnan(wire(missing).paw_mm) and not missing.paw_observed
 
 
-def test_a_message_of_the_wrong_size_is_refused_by_name():
-    message = Float64MultiArray()
-    message.data = [1.0, 2.0, 3.0]
-    with pytest.raises(ValueError, match=r"StepResult message has 3 values, expected 9 \(episode\[1\],day\[d\]"):
-        ri.STEP_RESULT.read(message)
-    with pytest.raises(ValueError, match="BiomassReading message has 3 values, expected 2"):
-        ri.BIOMASS_READING.read(message)
+def test_weather_and_forecast_name_the_observation_columns_and_carry_the_noise():
+    obs = observation(PAPER, 1)
+    wide = obs.astype(np.float64).tolist()
+    today = wire(ri.fill_weather(Weather(), ri.sim_time(date(2000, 4, 1), 5), 5, wide[ri.OBS_TODAY]))
+    assert ri.weather_of(today) == wide[ri.OBS_TODAY] and today.day == 5
+    assert [f"forecast_{name}" for name in WEATHER_NAMES] == list(PAPER.names[ri.OBS_FORECAST])
+    forecast = ri.forecast_noise(Forecast(), ObservationNoise())
+    ri.fill_weather(forecast.weather, ri.sim_time(date(2000, 4, 1), 6), 6, wide[ri.OBS_FORECAST])
+    forecast = wire(forecast)
+    assert ri.weather_of(forecast.weather) == wide[ri.OBS_FORECAST]
+    noise = ObservationNoise()
+    assert [getattr(forecast, f) for f in ri.FORECAST_SD_FIELDS] == [getattr(noise, n) for n in WEATHER_NAMES]
+    assert ri.FORECAST_SD_FIELDS[0] == "tmax_sd_degc" and ri.FORECAST_SD_FIELDS[-1] == "wind_sd_m_s"
 
 
-def test_a_codec_whose_labels_do_not_match_its_fields_is_refused():
-    with pytest.raises(ValueError, match="PawReading: 2 fields, 3 labels"):
-        ri.ArrayCodec(ri.PawReading, ("day[d]", "paw_mm[mm]", "extra[1]"))
+def test_a_step_result_reads_back_as_the_bridge_info():
+    result = StepResult(episode=3, day=41, irrigation_mm=7.25, irrigation_requested_mm=9.0, reward=-1.5,
+                        episode_return=812.5, reward_unit="USD/ha", terminated=False, truncated=True,
+                        yield_t_ha=0.0, command_sequence=17)
+    result.header.stamp = ri.sim_time(date(2000, 4, 1), 41)
+    obs = observation(EXTENDED, 2)
+    summary = ri.step_summary(wire(result), obs)
+    assert summary == {"episode": 3, "day": 41, "irrigation_mm": 7.25, "reward": -1.5, "terminated": False,
+                       "truncated": True, "yield_t_ha": 0.0, "return": 812.5, "command_sequence": 17,
+                       "date": "2000-05-12", "irrigation_requested_mm": 9.0, "reward_unit": "USD/ha",
+                       "observation": obs.astype(float).tolist()}
+    assert "observation" not in ri.step_summary(result)
 
 
-def test_the_step_summary_decodes_into_the_step_record():
-    record = CODECS["step_result"][1]
-    summary = {**record.summary(), "date": "2000-05-12", "irrigation_requested_mm": 9.0, "observation": [0.0] * 20}
-    assert summary["return"] == 812.5 and "episode_return" not in summary
-    assert ri.StepResult.from_summary(summary) == record
-    with pytest.raises(KeyError, match="command_sequence"):
-        ri.StepResult.from_summary({k: v for k, v in summary.items() if k != "command_sequence"})
+def test_farm_terms_read_back_as_the_reset_info_with_no_limit_as_none():
+    terms = FarmTerms(episode=2, scenario="benton-quota", seed=-1, weather_season=4, weather_source="gen",
+                      site_climate="", sowing_date="2000-04-01", reward_unit="USD/ha", tuber_price_usd_per_t=218.0,
+                      water_cost_usd_per_mm=1.25, event_cost_usd=0.0, quota_mm=math.inf, capacity_mm_per_day=8.0,
+                      max_irrigation_mm=100.0, potential_yield_t_ha=14.5, yield_value_per_t=1090.0)
+    obs = observation(EXTENDED, 3)
+    obs[ri.OBS_DAY] = 0.0
+    info = ri.reset_summary(wire(terms), obs)
+    assert (info["episode"], info["day"], info["seed"], info["site_climate"], info["observation_size"]) == (
+        2, 0, None, None, 29)
+    assert info["farm_terms"] == {"tuber_price_usd_per_t": 218.0, "water_cost_usd_per_mm": 1.25,
+                                  "event_cost_usd": 0.0, "quota_mm": None, "capacity_mm_per_day": 8.0}
+    assert np.array(info["observation"], np.float32).tobytes() == obs.tobytes()
 
 
-def test_irrigation_commands_with_and_without_an_episode():
+@pytest.mark.parametrize("namespace, frame", [("/", "farm"), ("/field7", "field7"), ("/a/b", "a/b")])
+def test_the_frame_is_the_field_namespace(namespace, frame):
+    assert ri.field_frame(namespace) == frame
+
+
+def test_irrigation_commands_with_and_without_an_episode_round_trip():
     with_episode = ri.irrigation_command(4, 2.5, 7)
-    assert ri.IRRIGATION.read(with_episode) == ri.IrrigationCommand(4, 2.5, 7)
+    back = ri.IRRIGATION.read(deserialize_message(serialize_message(with_episode), Float64MultiArray))
+    assert back == ri.IrrigationCommand(4, 2.5, 7) and type(back.day) is int
     without = ri.irrigation_command(4, 2.5)
     assert list(without.data) == [4.0, 2.5] and without.layout.dim[0].label == "day[d],irrigation[mm]"
+    message = Float64MultiArray()
+    message.data = [1.0, 2.0]
+    with pytest.raises(ValueError, match=r"IrrigationCommand message has 2 values, expected 3"):
+        ri.IRRIGATION.read(message)

@@ -8,13 +8,15 @@ from __future__ import annotations
 
 import json
 import math
+from datetime import date
 
 import numpy as np
 import pytest
 
 import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exists)
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
-from std_msgs.msg import Float32MultiArray, Float64MultiArray  # noqa: E402
+from crop_sim_interfaces.msg import CropState, FarmTerms, StepResult  # noqa: E402
+from std_msgs.msg import Float32MultiArray  # noqa: E402
 
 from crop_agent_ros.ros.bridge import RosIrrigationEnv  # noqa: E402
 from crop_agent_ros.ros.spin import PrivateRos  # noqa: E402
@@ -93,24 +95,24 @@ def test_observation_and_farm_terms_of_a_family_reset(quota_sim):
         observations, terms = [], []
         ros.node.create_subscription(Float32MultiArray, f"{name}/{ri.OBSERVATION_TOPIC}",
                                      lambda m: observations.append(m), ri.READER_QOS)
-        ros.node.create_subscription(Float64MultiArray, f"{name}/{ri.FARM_TERMS_TOPIC}",
-                                     lambda m: terms.append(m), ri.READER_QOS)
+        ros.node.create_subscription(FarmTerms, f"{name}/{ri.FARM_TERMS_TOPIC}", terms.append, ri.READER_QOS)
         client = ros_support.connect(ros, name, timeout=TIMEOUT_S)
         obs, summary = client.reset(seed=seed)
         episode = summary["episode"]
-        ros.spin_until(lambda: any(m.data[0] == episode for m in terms) and observations, TIMEOUT_S,
+        ros.spin_until(lambda: any(m.episode == episode for m in terms) and observations, TIMEOUT_S,
                        "the reset's farm terms and observation")
     assert obs.tobytes() == obs_offline.tobytes() and client.layout is EXTENDED
     message = observations[-1]
     assert message.layout.dim[0].label.split(",") == list(EXTENDED.labels) and message.layout.dim[0].size == 29
     assert np.asarray(message.data, np.float32).tobytes() == obs_offline.tobytes()
-    message_terms = next(m for m in terms if m.data[0] == episode)
-    assert message_terms.layout.dim[0].label == ",".join(ri.FARM_TERMS.labels)
-    term = ri.FARM_TERMS.read(message_terms)
+    term = next(m for m in terms if m.episode == episode)
     dmf = scenario.economics.tuber_dry_matter_fraction
-    expected = ri.FarmTerms(episode, info["yield_value_per_t"] * dmf, info["water_cost_per_mm"], 0.0,
-                            info["quota_mm"], 8.0)
-    assert term == expected and list(message_terms.data) == [float(value) for value in expected]
+    expected = dict(zip(ri.TERM_FIELDS, (info["yield_value_per_t"] * dmf, info["water_cost_per_mm"], 0.0,
+                                         info["quota_mm"], 8.0)))
+    assert {name: getattr(term, name) for name in ri.TERM_FIELDS} == expected
+    assert (term.scenario, term.seed, term.reward_unit, term.sowing_date) == ("benton-quota", seed, "USD/ha",
+                                                                              info["date"])
+    assert term.header.stamp.sec == ri.sim_time(date.fromisoformat(info["date"]), 0).sec
     assert 150.0 <= term.tuber_price_usd_per_t <= 300.0 and 150.0 <= term.quota_mm <= 450.0  # the YAML's ranges
     # the observation carries the same terms (float32)
     for column, value in (("tuber_price_usd_per_t", term.tuber_price_usd_per_t),
@@ -118,7 +120,7 @@ def test_observation_and_farm_terms_of_a_family_reset(quota_sim):
                           ("quota_remaining_mm", term.quota_mm), ("capacity_mm_per_day", 8.0)):
         assert obs[EXTENDED.index(column)] == np.float32(value), column
     assert summary["reward_unit"] == "USD/ha" and summary["observation_size"] == 29
-    assert summary["farm_terms"] == {name: value for name, value in expected._asdict().items() if name != "episode"}
+    assert summary["farm_terms"] == expected
 
 
 def test_scenario_changes_at_reset_resize_everything(tmp_path):
@@ -129,11 +131,11 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
     process, name, log = ros_support.start_sim(tmp_path, params={"scenario": "benton-generated"})
     try:
         with PrivateRos("family_switch") as ros:
-            got = {"obs": [], "result": [], "terms": [], "status": [], "paw": []}
+            got = {"obs": [], "result": [], "terms": [], "status": [], "crop": []}
             for topic, kind, key in ((ri.OBSERVATION_TOPIC, Float32MultiArray, "obs"),
-                                     (ri.STEP_RESULT_TOPIC, Float64MultiArray, "result"),
-                                     (ri.FARM_TERMS_TOPIC, Float64MultiArray, "terms"),
-                                     (ri.PAW_TOPIC, Float64MultiArray, "paw")):
+                                     (ri.STEP_RESULT_TOPIC, StepResult, "result"),
+                                     (ri.FARM_TERMS_TOPIC, FarmTerms, "terms"),
+                                     (ri.CROP_STATE_TOPIC, CropState, "crop")):
                 ros.node.create_subscription(kind, f"{name}/{topic}", lambda m, k=key: got[k].append(m),
                                              ri.READER_QOS)
             ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
@@ -157,9 +159,8 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
             back_obs, back = season("benton-generated", 2, [5.0])
             days = 3 + 4 + 16 + 2  # of the four seasons, their reset days included
             last = float(back[-1]["day"])  # the last season's last day: the last PAW and step result published
-            ros.spin_until(lambda: len(got["paw"]) >= days and len(got["result"]) >= days and len(got["terms"]) >= 4
-                           and ri.PAW_READING.read(got["paw"][-1]).day == last
-                           and ri.FAMILY_STEP_RESULT.read(got["result"][-1]).day == last
+            ros.spin_until(lambda: len(got["crop"]) >= days and len(got["result"]) >= days and len(got["terms"]) >= 4
+                           and got["crop"][-1].day == last and got["result"][-1].day == last
                            and sum(1 for m in got["status"] if m.level == DiagnosticStatus.WARN) >= 3,
                            TIMEOUT_S, "every day's PAW and step result, the farm terms and the cut reports")
     finally:
@@ -190,23 +191,22 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
 
     # topic labels follow the layout; step results carry the reward's unit. A volatile reader may also get the
     # start's latched day: the four seasons are the last messages.
-    for key in ("obs", "result", "paw"):
+    for key in ("obs", "result", "crop"):
         got[key] = got[key][-days:]
-    got["terms"] = [m for m in got["terms"] if m.data[0] >= paper[0]["episode"]]
+    got["terms"] = [m for m in got["terms"] if m.episode >= paper[0]["episode"]]
     labels = [m.layout.dim[0].label.split(",") for m in got["obs"]]
     assert [len(x) for x in labels] == [20] * 3 + [29] * 4 + [29] * 16 + [20] * 2
     assert labels[3] == list(EXTENDED.labels) and labels[0] == labels[-1] == list(PAPER.labels)
-    result_labels = [m.layout.dim[0].label for m in got["result"]]
-    assert result_labels[0] == ",".join(ri.STEP_RESULT.labels) == result_labels[-1]
-    assert result_labels[3] == ",".join(ri.FAMILY_STEP_RESULT.labels) and "reward[USD/ha]" in result_labels[3]
+    units = [m.reward_unit for m in got["result"]]
+    assert units == ["t/ha"] * 3 + ["USD/ha"] * 4 + ["USD/ha"] * 16 + ["t/ha"] * 2
 
     # farm terms at each reset: NaN money and no quota for the paper task, the YAML's quota for the tight one
-    terms = [ri.FARM_TERMS.read(m) for m in got["terms"]]
+    terms = got["terms"]
     assert [t.episode for t in terms] == [s[0]["episode"] for s in (paper, tight_run, sensing, back)]
     paper_terms, tight_terms = terms[0], terms[1]
-    assert all(math.isnan(v) for v in paper_terms[1:4])
+    assert all(math.isnan(getattr(paper_terms, name)) for name in ri.TERM_FIELDS[:3])
     assert (paper_terms.quota_mm, paper_terms.capacity_mm_per_day) == (math.inf, 100.0)
-    assert tight_terms[3:] == (0.0, 10.0, 8.0)
+    assert (tight_terms.event_cost_usd, tight_terms.quota_mm, tight_terms.capacity_mm_per_day) == (0.0, 10.0, 8.0)
 
     # cut commands are reported (WARN) with the mm applied and why
     cuts = [ri.status_values(m) | {"level": m.level} for m in got["status"] if m.level == DiagnosticStatus.WARN]
@@ -215,17 +215,18 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
     assert "capacity" in cuts[0]["message"] and "quota" in cuts[1]["message"] and "quota" in cuts[2]["message"]
     assert all(c["accepted"] for c in cuts)
 
-    # ~/paw: NaN exactly on the days the sensing task's reading is missing, else the observation's PAW
+    # ~/crop_state: PAW NaN (paw_observed false) exactly on the days the sensing task's reading is missing, else
+    # the observation's PAW
     observed = sensing_offline[:, EXTENDED.index("paw_observed")]
     assert 0 < observed.sum() < len(observed), "the 15 days hold readings and dropouts"
     # the sensing season's PAW messages: after the paper season's 3 and the tight season's 4
-    sensing_paw = [ri.PAW_READING.read(m) for m in got["paw"]][3 + 4:3 + 4 + 16]
+    sensing_paw = got["crop"][3 + 4:3 + 4 + 16]
     assert [reading.day for reading in sensing_paw] == list(range(16))
-    for (day, value), obs in zip(sensing_paw, sensing_offline):
+    for reading, obs in zip(sensing_paw, sensing_offline):
         if obs[EXTENDED.index("paw_observed")] == 0.0:
-            assert math.isnan(value), day
+            assert math.isnan(reading.paw_mm) and not reading.paw_observed, reading.day
         else:
-            assert value == float(obs[EXTENDED.index("paw_mm")]), day
+            assert reading.paw_mm == float(obs[EXTENDED.index("paw_mm")]) and reading.paw_observed, reading.day
 
     # the season log: one header, the family's columns filled only in family rows
     rows = ros_support.read_log(log)

@@ -12,7 +12,11 @@ from __future__ import annotations
 import ast
 import importlib.util
 import os
+import re
+import signal
+import subprocess
 import sys
+import time
 import types
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -39,14 +43,19 @@ def test_package_xml_is_format_3_ament_python_with_its_dependencies():
 # resolves, so `rosdep install --from-paths src` does not stop at an unknown key (python3-refet-pip has no rule).
 ROSDEP_KEYS = {"ament_python", "rclpy", "builtin_interfaces", "std_msgs", "std_srvs", "sensor_msgs", "rosgraph_msgs",
                "diagnostic_msgs", "rcl_interfaces", "ament_index_python", "launch", "launch_ros", "python3-numpy",
-               "python3-yaml", "python3-matplotlib", "python3-pytest"}
+               "python3-yaml", "python3-matplotlib", "python3-pytest", "ament_cmake", "rosidl_default_generators",
+               "rosidl_default_runtime", "action_msgs"}
+# packages of this repository: rosdep resolves them from the workspace (`--from-paths ... --ignore-src`)
+WORKSPACE_KEYS = {"crop_sim_interfaces"}
 PIP_ONLY = ("gymnasium", "refet", "stable-baselines3", "pydantic")
 
 
 def test_package_xml_names_only_rosdep_keys_that_resolve_and_says_what_comes_from_pip():
     root = ET.parse(REPO / "package.xml").getroot()
     keys = {e.text for e in root if e.tag.endswith("depend") and e.get("condition") is None}
-    assert keys <= ROSDEP_KEYS, keys - ROSDEP_KEYS
+    interfaces = ET.parse(REPO / "crop_sim_interfaces" / "package.xml").getroot()
+    keys |= {e.text for e in interfaces if e.tag.endswith("depend")}
+    assert keys <= ROSDEP_KEYS | WORKSPACE_KEYS, keys - ROSDEP_KEYS - WORKSPACE_KEYS
     assert not [key for key in keys if key.endswith("-pip")]
     comments = (REPO / "package.xml").read_text()
     requirements = (REPO / "requirements.txt").read_text()
@@ -176,3 +185,103 @@ def test_launch_shuts_down_after_the_agent_and_fails_when_the_agent_fails(launch
         with pytest.raises(launch_file.AgentFailed, match=f"agent_node exited with status {status}"):
             on_exit(Exited(status), context=None)
 
+
+
+# --- the typed interfaces: crop_sim_interfaces, an ament_cmake package beside the ament_python one -------------
+
+INTERFACES = REPO / "crop_sim_interfaces"
+
+
+def interface_files() -> list[Path]:
+    return sorted(p for kind in ("msg", "srv", "action") for p in (INTERFACES / kind).iterdir())
+
+
+def test_interface_package_is_ament_cmake_generating_every_interface_file():
+    root = ET.parse(INTERFACES / "package.xml").getroot()
+    assert root.findtext("name") == "crop_sim_interfaces" and root.find("export/build_type").text == "ament_cmake"
+    assert root.findtext("member_of_group") == "rosidl_interface_packages"
+    cmake = (INTERFACES / "CMakeLists.txt").read_text()
+    listed = set(re.findall(r'"((?:msg|srv|action)/\w+\.\w+)"', cmake))
+    assert listed == {str(p.relative_to(INTERFACES)) for p in interface_files()}
+    # crop_sim_ros runs after it: colcon orders the two by this dependency
+    depends = {e.text for e in ET.parse(REPO / "package.xml").getroot() if e.tag.endswith("depend")}
+    assert "crop_sim_interfaces" in depends
+
+
+def test_every_interface_field_is_documented_with_its_unit_or_meaning():
+    """Each field line of every .msg/.srv/.action carries a comment (its unit, or what it means), except the
+    header and a few whose type says it all; float fields name their unit in the name or the comment."""
+    for path in interface_files():
+        for line in path.read_text().splitlines():
+            field = line.split("#")[0].strip()
+            if not field or field == "---" or field.startswith("std_msgs/Header"):
+                continue
+            comment = line.partition("#")[2].strip()
+            assert comment, f"{path.name}: {line!r} has no comment"
+
+
+def test_the_installed_interfaces_match_the_sources():
+    """What ./farm built into this environment is these definitions (./farm rebuilds when they change)."""
+    from crop_sim_interfaces.msg import CropState
+    from crop_sim_interfaces.srv import Step
+
+    assert "biomass_t_ha" in CropState.get_fields_and_field_types()
+    assert Step.Request().day == Step.Request.ANY == -1
+    share = Path(sys.prefix) / "share" / "crop_sim_interfaces"
+    for path in interface_files():
+        installed = share / path.relative_to(INTERFACES)
+        assert installed.read_text() == path.read_text(), f"{path.name}: rebuild with scripts/build_interfaces.sh"
+
+
+def test_colcon_builds_both_packages_in_a_workspace_and_the_copy_installed_node_starts(tmp_path, shared_data):
+    """The documented colcon route: the repository under src/, the interface package named as a second base
+    path (colcon does not look inside a package's folder); a copy install, then the node from install/ with the
+    workspace's setup file sourced: it imports the interfaces from install/ and finds the data."""
+    from crop_agent_ros.ros.process import isolated_ros_env
+
+    src = tmp_path / "ws" / "src"
+    src.mkdir(parents=True)
+    (src / "crop_sim_ros").symlink_to(REPO)
+    venv = Path(sys.prefix)
+    env = {**isolated_ros_env(base={k: v for k, v in os.environ.items() if k != "PYTHONPATH"}), "PATH": f"{venv / 'bin'}{os.pathsep}{os.environ['PATH']}",
+           "AMENT_PREFIX_PATH": str(venv), "CMAKE_PREFIX_PATH": str(venv), "CROP_SIM_DATA_DIR": str(shared_data)}
+    build = subprocess.run(["colcon", "build", "--base-paths", "src", "src/crop_sim_ros/crop_sim_interfaces",
+                            "--event-handlers", "console_cohesion-"], cwd=tmp_path / "ws", env=env,
+                           capture_output=True, text=True, timeout=600)
+    assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
+    install = tmp_path / "ws" / "install"
+    order = re.findall(r"Finished <<< (\w+)", build.stdout)
+    assert order == ["crop_sim_interfaces", "crop_sim_ros"], build.stdout[-2000:]
+    node = install / "crop_sim_ros" / "lib" / "crop_sim_ros" / "sim_node"
+    script = (f"source {install / 'setup.bash'} && python -c 'import crop_sim_interfaces.msg as m; print(m.__file__)'"
+              f" && exec {node} --ros-args -p scenario:=benton-2000 -p log_path:={tmp_path / 'log.csv'}"
+              f" -r __ns:=/colcon_{os.getpid()}")
+    out = tmp_path / "node.out"
+    with out.open("w") as sink:
+        process = subprocess.Popen(["bash", "-c", script], env=env, stdout=sink, stderr=subprocess.STDOUT,
+                                   start_new_session=True)
+    try:
+        deadline = time.monotonic() + 90
+        while "ready:" not in out.read_text() and process.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+        text = out.read_text()
+        assert str(install / "crop_sim_interfaces") in text.splitlines()[0], text
+        assert "ready: scenario 'benton-2000'" in text, text
+    finally:
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 0, out.read_text()
+
+
+def test_build_script_names_a_missing_tool_in_one_line(tmp_path):
+    """scripts/build_interfaces.sh on a machine without cmake: exit 1, one line saying what to install."""
+    import shutil
+
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    for tool in ("dirname", "cc", "c++", "make"):  # everything the script runs before its checks, but cmake
+        (bin_dir / tool).symlink_to(shutil.which(tool))
+    done = subprocess.run(["/bin/bash", str(REPO / "scripts" / "build_interfaces.sh"), sys.prefix],
+                          env={"PATH": str(bin_dir)}, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1 and done.stdout == ""
+    assert done.stderr.splitlines() == ["build_interfaces: cmake not found: install a C/C++ toolchain, cmake and make "
+                                        "(Debian/Ubuntu: sudo apt-get install build-essential cmake)"]

@@ -22,8 +22,8 @@ import pytest
 import ros_support  # noqa: E402  (sets ROS_DOMAIN_ID / discovery range before any context exists)
 from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
+from crop_sim_interfaces.msg import CropState, Forecast, StepResult, Weather  # noqa: E402
 from std_msgs.msg import Float32MultiArray, Float64MultiArray  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
 
 from crop_agent_ros.ros.spin import PrivateRos, call  # noqa: E402
 from crop_agent_ros.ros.process import (NodeProcess, StillRunning, _shm_files_of, clean_dead_ports,  # noqa: E402
@@ -50,20 +50,14 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
     sim, name, log = ros_support.start_sim(tmp_path, params={"seed": 3})
     agent = None
     try:
-        got = {key: [] for key in ("obs", "biomass", "paw", "today", "forecast", "result", "clock")}
+        got = {key: [] for key in ("obs", "crop", "today", "forecast", "result", "clock")}
         subs = [
             ros.node.create_subscription(Float32MultiArray, f"{name}/observation",
                                          lambda m: got["obs"].append(ri.observation_from_message(m)), ri.READER_QOS),
-            ros.node.create_subscription(Float64MultiArray, f"{name}/biomass",
-                                         lambda m: got["biomass"].append(ri.BIOMASS_READING.read(m)), ri.READER_QOS),
-            ros.node.create_subscription(Float64MultiArray, f"{name}/paw",
-                                         lambda m: got["paw"].append(ri.PAW_READING.read(m)), ri.READER_QOS),
-            ros.node.create_subscription(Float64MultiArray, f"{name}/weather/today",
-                                         lambda m: got["today"].append(ri.WEATHER_TODAY.read(m)), ri.READER_QOS),
-            ros.node.create_subscription(Float64MultiArray, f"{name}/weather/forecast",
-                                         lambda m: got["forecast"].append(ri.WEATHER_FORECAST.read(m)), ri.READER_QOS),
-            ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
-                                         lambda m: got["result"].append(ri.STEP_RESULT.read(m)), ri.READER_QOS),
+            ros.node.create_subscription(CropState, f"{name}/crop_state", got["crop"].append, ri.READER_QOS),
+            ros.node.create_subscription(Weather, f"{name}/weather/today", got["today"].append, ri.READER_QOS),
+            ros.node.create_subscription(Forecast, f"{name}/weather/forecast", got["forecast"].append, ri.READER_QOS),
+            ros.node.create_subscription(StepResult, f"{name}/step_result", got["result"].append, ri.READER_QOS),
             ros.node.create_subscription(Clock, "/clock", lambda m: got["clock"].append(m.clock.sec), ri.CLOCK_QOS),
         ]
         ros.spin_until(lambda: all(s.get_publisher_count() >= 1 for s in subs), 30, "the simulator's topics")
@@ -81,8 +75,8 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
         # the last warm-up day's messages (some published after the step's answer) have all arrived: forget them
         warm_clock = ri.sim_time(date(2000, 4, 1), last).sec
         ros.spin_until(lambda: got["clock"][-1] == warm_clock and got["result"][-1].day == last
-                       and int(got["obs"][-1][ri.OBS_DAY]) == last and got["forecast"][-1].for_day == last + 1
-                       and all(got[k][-1].day == last for k in ("biomass", "paw", "today")), 10, "the warm-up's last day")
+                       and int(got["obs"][-1][ri.OBS_DAY]) == last and got["forecast"][-1].weather.day == last + 1
+                       and all(got[k][-1].day == last for k in ("crop", "today")), 10, "the warm-up's last day")
         for values in got.values():
             values.clear()
         agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="agent_node",
@@ -119,11 +113,21 @@ def test_sim_and_agent_processes_grow_a_season(tmp_path, ros):
                                   dtype=np.float32)
                 assert any(o.tobytes() == logged.tobytes() for o in observations[day])
         final = observations[season["days"]][-1]
-        for key, index in (("biomass", ri.OBS_BIOMASS), ("paw", ri.OBS_PAW)):
-            day, value = got[key][-1]
-            assert day == season["days"] and value == float(final[index])
-        assert list(got["today"][-1]) == [season["days"]] + final[ri.OBS_TODAY].astype(float).tolist()
-        assert list(got["forecast"][-1]) == [season["days"] + 1] + final[ri.OBS_FORECAST].astype(float).tolist()
+        # the typed topics: named fields equal to the observation's values, stamped in farm time, frame the field
+        crop, today, forecast = got["crop"][-1], got["today"][-1], got["forecast"][-1]
+        assert (crop.episode, crop.day, crop.paw_observed, crop.mature) == (episode, season["days"], True, True)
+        assert (crop.biomass_t_ha, crop.paw_mm, crop.thermal_time_degc_d) == (
+            float(final[ri.OBS_BIOMASS]), float(final[ri.OBS_PAW]), float(final[ri.OBS_THERMAL_TIME]))
+        assert 0.0 <= crop.canopy_fsolar <= 1.0
+        assert today.day == season["days"] and ri.weather_of(today) == final[ri.OBS_TODAY].astype(float).tolist()
+        assert forecast.weather.day == season["days"] + 1
+        assert ri.weather_of(forecast.weather) == final[ri.OBS_FORECAST].astype(float).tolist()
+        assert forecast.rain_sd_mm == 3.0 and forecast.tmax_sd_degc == 3.0  # the paper's noise (scenario.py)
+        expected_stamp = ri.sim_time(date(2000, 4, 1), season["days"]).sec
+        frame = name.rsplit("/", 2)[1]  # the namespace the simulator runs under
+        for message in (crop, today, forecast, got["result"][-1]):
+            assert (message.header.stamp.sec, message.header.frame_id) == (expected_stamp, frame)
+        assert forecast.weather.header.stamp.sec == expected_stamp + 86400
         result = got["result"][-1]
         assert result.episode == episode and result.terminated and result.yield_t_ha == season["yield_t_ha"]
         assert result.episode_return == pytest.approx(season["return"], rel=1e-12)
@@ -292,9 +296,9 @@ def test_two_clients_stepping_concurrently_are_serialised(shared_sim):
                     warmed.set()
                 ready.wait(60)
                 for _ in range(n):
-                    response = call(ros.executor, step, Trigger.Request())
+                    response = call(ros.executor, step, ros_support.pending_step())
                     assert response.success, response.message
-                    days[k].append(json.loads(response.message)["day"])
+                    days[k].append(response.result.day)
         except BaseException as error:  # noqa: BLE001
             errors.append(error)
 
@@ -331,8 +335,8 @@ def test_command_racing_step_is_applied_exactly_once_to_its_day(shared_sim):
             with PrivateRos(f"commander_{uuid.uuid4().hex[:6]}") as ros:
                 ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
                                              lambda m: acks.append(ri.status_values(m)), ri.READER_QOS)
-                ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
-                                             lambda m: current.__setitem__("day", ri.STEP_RESULT.read(m).day), ri.READER_QOS)
+                ros.node.create_subscription(StepResult, f"{name}/step_result",
+                                             lambda m: current.__setitem__("day", m.day), ri.READER_QOS)
                 publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation", ri.COMMAND_QOS)
                 ros.spin_until(lambda: publisher.get_subscription_count() >= 1, 20, "the command subscriber")
                 rng = np.random.default_rng(0)
@@ -467,8 +471,7 @@ def test_free_running_mode_steps_by_itself_and_counts_days_without_a_command(sha
     ros.spin_until(lambda: statuses[-1]["day"] == 2, 10, "the status of day 2")
     assert statuses[-1]["days_without_command"] == 1 and statuses[-1]["level"] == 0, statuses[-1]
     days = []
-    ros.node.create_subscription(Float64MultiArray, f"{name}/step_result", lambda m: days.append(ri.STEP_RESULT.read(m).day),
-                                 ri.READER_QOS)
+    ros.node.create_subscription(StepResult, f"{name}/step_result", lambda m: days.append(m.day), ri.READER_QOS)
     try:
         (result,) = set_parameter(ros, name, days_per_second=200.0)
         assert result.successful
@@ -485,7 +488,7 @@ def test_free_running_mode_steps_by_itself_and_counts_days_without_a_command(sha
         step = step_client(ros, name)
         for _ in range(3):  # refused without a change of state: safe to repeat if DDS lost the first request
             try:
-                response = call(ros.executor, step, Trigger.Request(), timeout=5)
+                response = call(ros.executor, step, ros_support.pending_step(), timeout=5)
                 break
             except TimeoutError:
                 continue
@@ -529,8 +532,7 @@ def test_stepping_commands_step_once_and_only_their_day(shared_sim, ros):
     statuses, results = [], []
     status_sub = ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
                                               lambda m: statuses.append(ri.status_values(m)), ri.READER_QOS)
-    result_sub = ros.node.create_subscription(Float64MultiArray, f"{name}/step_result",
-                                              lambda m: results.append(ri.STEP_RESULT.read(m)), ri.READER_QOS)
+    result_sub = ros.node.create_subscription(StepResult, f"{name}/step_result", results.append, ri.READER_QOS)
     publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation_step", ri.COMMAND_QOS)
     ros.spin_until(lambda: publisher.get_subscription_count() >= 1 and status_sub.get_publisher_count() >= 1
                    and result_sub.get_publisher_count() >= 1, 20, "the simulator's topics")
@@ -550,3 +552,36 @@ def test_stepping_commands_step_once_and_only_their_day(shared_sim, ros):
     client.day = 1
     obs, reward, terminated, truncated, summary = client.step(2.0)  # the client's own topic path
     assert summary["day"] == 2 and summary["irrigation_mm"] == 2.0 and obs[ri.OBS_DAY] == 2
+
+
+def test_typed_step_and_reset_requests(shared_sim, ros):
+    """~/step: the request's day and episode are checked like a command's (a wrong one is refused, nothing
+    changes); ~/reset: the request's seed is this season's only (the parameter stays), its scenario is set as
+    the parameter, a seed below FROM_PARAMETER is refused."""
+    from crop_sim_interfaces.srv import Reset, Step
+
+    _, name, _ = shared_sim
+    reset = ros.node.create_client(Reset, f"{name}/reset", qos_profile=ri.SERVICE_CLIENT_QOS)
+    step = step_client(ros, name)
+    seed_before = ros_support.connect(ros, name).get_parameters(["seed"])["seed"]
+    answer = call(ros.executor, reset, Reset.Request(seed=21))
+    assert answer.success and answer.terms.seed == 21 and answer.terms.scenario == "benton-generated"
+    episode = answer.terms.episode
+    assert np.asarray(answer.observation, np.float32)[ri.OBS_DAY] == 0.0
+    for request, why in ((Step.Request(irrigation_mm=1.0, day=1), "day 1 is in the future"),
+                         (Step.Request(irrigation_mm=1.0, episode=episode + 1), f"episode {float(episode + 1)!r}"),
+                         (Step.Request(irrigation_mm=-1.0), "negative")):
+        refused = call(ros.executor, step, request)
+        assert not refused.success and why in refused.message, refused.message
+        assert (refused.result.episode, refused.result.day) == (episode, 0)
+    stepped = call(ros.executor, step, Step.Request(irrigation_mm=3.5, day=0, episode=episode))
+    assert stepped.success and (stepped.result.day, stepped.result.irrigation_mm) == (1, 3.5)
+    assert stepped.result.header.stamp.sec == ri.sim_time(date.fromisoformat(answer.terms.sowing_date), 1).sec
+    bad = call(ros.executor, reset, Reset.Request(seed=-3))
+    assert not bad.success and "seed: -3" in bad.message
+    other = call(ros.executor, reset, Reset.Request(scenario="benton-quota", seed=2))
+    assert other.success and other.terms.scenario == "benton-quota" and len(other.observation) == 29
+    assert other.terms.reward_unit == "USD/ha" and other.terms.quota_mm < math.inf
+    client = ros_support.connect(ros, name)
+    assert client.get_parameters(["seed", "scenario"]) == {"seed": seed_before, "scenario": "benton-quota"}
+    assert call(ros.executor, reset, Reset.Request(scenario="benton-generated")).success  # as the fixture had it

@@ -7,7 +7,9 @@ from __future__ import annotations
 import json
 import math
 
+from crop_sim_interfaces.action import RunSeason
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
+from rclpy.action import ActionServer
 from rclpy.node import Node
 from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import Float32MultiArray, Float64MultiArray
@@ -16,9 +18,11 @@ from crop_sim_ros import ros_interface as ri
 from crop_sim_ros.simulate import is_scenario_path
 
 from ..policies import NODE_POLICIES, POLICY_KINDS, PolicyArguments, build_policy
-from .sim_client import UNCHANGED, SimClient, scenario_layout
+from .sim_client import UNCHANGED, SimClient, SimError, scenario_layout
+from .spin import PrivateRos, ServiceTimeout
 
 NODE_NAME = "crop_agent"
+RUN_SEASON_ACTION = "run_season"  # ~/run_season: the RunSeason action the reactive node serves
 
 
 class PolicyMismatch(ValueError):
@@ -65,6 +69,31 @@ def check_observation_size(policy, size: int, where: str) -> None:
         sizes = " or ".join(map(str, policy.observation_sizes))
         raise PolicyMismatch(f"policy {policy.name!r} reads observations of {sizes} values, but {where} has {size} "
                              "(the paper's task: 20; a family task: 29)")
+
+
+def grow_season(client: SimClient, policy, obs, info: dict, on_day=None) -> dict:
+    """One season through ``client`` (just reset: ``obs``, ``info``) with ``policy``; ``on_day(water_mm)`` after
+    each day (the client's ``last_result`` is that day's StepResult). Returns the season's summary."""
+    water = total = 0.0
+    days = 0
+    done = False
+    summary = info
+    while not done:
+        mm = float(policy.act(obs))
+        obs, reward, terminated, truncated, summary = client.step(mm)
+        water += summary["irrigation_mm"]
+        total += reward
+        days += 1
+        done = terminated or truncated
+        if on_day is not None:
+            on_day(water)
+    # the return over the potential yield's value (as offline: info["normalized_return"])
+    potential = (info.get("potential_yield_t_ha") or math.nan) * info.get("yield_value_per_t", 1.0)
+    return {"episode": summary["episode"], "scenario": info.get("scenario"), "seed": info.get("seed"),
+            "weather": info.get("weather_source"), "policy": policy.name, "days": days,
+            "matured": bool(summary["terminated"]), "yield_t_ha": summary["yield_t_ha"],
+            "irrigation_mm": water, "return": total, "reward_unit": info.get("reward_unit", "t/ha"),
+            "normalized_return": total / potential if potential else None}
 
 
 class AgentNode(Node):
@@ -125,6 +154,9 @@ class AgentNode(Node):
                                      ri.COMMAND_QOS)
             # a command published before the simulator's subscription matched is lost: repeat it until accepted
             self.create_timer(0.2, self._repeat_pending)
+            # feedback: one message a day in a burst; a deep queue keeps them for a reader that lags
+            self._season_server = ActionServer(self, RunSeason, "~/" + RUN_SEASON_ACTION, self._run_season,
+                                               feedback_pub_qos_profile=ri.COMMAND_STATUS_QOS)
 
     def _on_observation(self, message: Float32MultiArray) -> None:
         obs = ri.observation_from_message(message)
@@ -156,6 +188,49 @@ class AgentNode(Node):
         if self._pending is not None and self._command.get_subscription_count() > 0:
             self._publish_pending()
 
+    def _run_season(self, goal_handle) -> RunSeason.Result:
+        """~/run_season: grow one season with the goal's policy (or the node's), a StepResult per day as
+        feedback. The season runs on a private ROS context of its own, so that this node's executor (blocked
+        meanwhile: no cancel, no reactive commands) is not spun from inside its own callback."""
+        goal = goal_handle.request
+        result = RunSeason.Result()
+        try:
+            with PrivateRos(f"{self.get_name()}_season") as ros:
+                client = SimClient(ros.node, ros.executor, self.sim, timeout=self.get_parameter("timeout").value)
+                simulator_scenario = client.connect()["scenario"]
+                scenario = goal.scenario.strip() or simulator_scenario
+                policy = self._goal_policy(goal.policy.strip(), scenario)
+                parameters = {"scenario": scenario} if goal.scenario.strip() else {}
+                obs, info = client.reset(seed=None if goal.seed < 0 else goal.seed, weather_season=UNCHANGED,
+                                         **parameters)
+                check_observation_size(policy, obs.size, f"the observation of {self.sim}")
+                policy.reset(None if goal.seed < 0 else goal.seed)
+
+                def feedback(water_mm: float) -> None:
+                    goal_handle.publish_feedback(RunSeason.Feedback(step=client.last_result, water_mm=water_mm))
+
+                season = grow_season(client, policy, obs, info, feedback)
+                client.close()
+        except (SimError, ServiceTimeout, TimeoutError, PolicyMismatch, ValueError, FileNotFoundError) as error:
+            self.get_logger().error(f"run_season aborted: {type(error).__name__}: {error}")
+            goal_handle.abort()
+            result.success, result.message = False, f"{type(error).__name__}: {error}"
+            return result
+        goal_handle.succeed()
+        result.success, result.episode, result.days = True, season["episode"], season["days"]
+        result.yield_t_ha, result.water_mm = season["yield_t_ha"], season["irrigation_mm"]
+        result.episode_return, result.reward_unit = season["return"], season["reward_unit"]
+        self.get_logger().info(f"run_season: {json.dumps(season)}")
+        return result
+
+    def _goal_policy(self, kind: str, scenario: str):
+        """The goal's policy (''  = this node's), built for the simulator's ``scenario`` when it reads a task."""
+        if not kind:
+            return self.policy
+        parameter = {name: self.get_parameter(name).value for name in ("policy_file", "constant_mm", "task")}
+        task = parameter["task"].strip() or ("" if is_scenario_path(scenario) else scenario)
+        return make_agent_policy(kind, parameter["policy_file"], parameter["constant_mm"], task)
+
     def drive(self, executor) -> list[dict]:
         """Grow ``seasons`` seasons through the simulator; returns one summary per season."""
         seasons = self.get_parameter("seasons").value
@@ -171,25 +246,8 @@ class AgentNode(Node):
                 obs, info = client.reset(seed=None, weather_season=UNCHANGED)  # continue the stream
             check_observation_size(self.policy, obs.size, f"the observation of {self.sim}")  # a scenario change
             self.policy.reset(None if seed < 0 else seed + k)
-            water = 0.0
-            total = 0.0
-            days = 0
-            done = False
-            summary = info
-            while not done:
-                mm = float(self.policy.act(obs))
-                obs, reward, terminated, truncated, summary = client.step(mm)
-                water += summary["irrigation_mm"]
-                total += reward
-                days += 1
-                done = terminated or truncated
-            # the return over the potential yield's value (as offline: info["normalized_return"])
-            potential = (info.get("potential_yield_t_ha") or math.nan) * info.get("yield_value_per_t", 1.0)
-            result = {"episode": summary["episode"], "scenario": info.get("scenario"), "seed": info.get("seed"),
-                      "weather": info.get("weather_source"), "policy": self.policy.name, "days": days,
-                      "matured": bool(summary["terminated"]), "yield_t_ha": summary["yield_t_ha"],
-                      "irrigation_mm": water, "return": total, "reward_unit": info.get("reward_unit", "t/ha"),
-                      "normalized_return": total / potential if potential else None}
+            result = grow_season(client, self.policy, obs, info)
+            water, total, days = result["irrigation_mm"], result["return"], result["days"]
             summaries.append(result)
             print("season summary: " + json.dumps(result), flush=True)
             self.get_logger().info(

@@ -12,13 +12,18 @@ Two ways of working:
   publishes the policy's irrigation for that day on ``<sim_node>/irrigation``, repeating it every 0.2 s
   until ``<sim_node>/irrigation_status`` reports it accepted (or rejected). Whoever steps the
   simulator (a user with ``ros2 service call``, or the simulator itself with ``mode:=free_running``)
-  decides when days pass.
-- drive (``drive: true``): the node runs ``seasons`` seasons itself: reset, then every day publish the
-  command, wait for the simulator's acknowledgement, call ``<sim_node>/step``, until the season ends; it
-  prints a summary of each season (yield t/ha, irrigation mm, return) as a line
-  ``season summary: {json}`` and exits (status 0; 1 if the simulator failed or did not answer within
-  ``timeout`` seconds, the start included). The simulator's ``seed`` and ``weather_season`` parameters are
-  set for each reset only and restored after it (:class:`~crop_agent_ros.ros.sim_client.SimClient`).
+  decides when days pass. The reactive node also serves the action ``~/run_season``
+  (``crop_sim_interfaces/action/RunSeason``): a goal (scenario, seed, policy; '' = the simulator's scenario,
+  the node's policy) grows one season through the simulator's typed services, with each day's StepResult as
+  feedback and the yield, water and return as result (``ros2 action send_goal --feedback
+  /crop_agent/run_season crop_sim_interfaces/action/RunSeason "{seed: 3}"``). While a goal runs, the node
+  does nothing else (no cancel).
+- drive (``drive: true``): the node runs ``seasons`` seasons itself: ``<sim_node>/reset``, then every day
+  ``<sim_node>/step`` with the policy's irrigation (the stepping command on ``<sim_node>/irrigation_step``,
+  answered on ``<sim_node>/step_result``), until the season ends; it prints a summary of each season (yield
+  t/ha, irrigation mm, return) as a line ``season summary: {json}`` and exits (status 0; 1 if the simulator
+  failed or did not answer within ``timeout`` seconds, the start included). Each season's seed travels in the
+  Reset request: the simulator's parameters stay as they are (:class:`~crop_agent_ros.ros.sim_client.SimClient`).
 
 Policies (parameter ``policy``, built by :func:`crop_agent_ros.ros.agent.make_agent_policy`): ``zero``;
 ``constant`` (``constant_mm`` mm/day); ``best-constant`` and ``refill`` (the rules tuned on generated seasons);

@@ -10,8 +10,8 @@ private ROS_DOMAIN_ID):
 2. bare topic ping-pong: std_msgs/Float64MultiArray out, echoed back by the child;
 3. whole seasons through the Gymnasium bridge (``RosIrrigationEnv``) against a ``sim_node`` child, both
    ways: ``via="topic"`` (the default: a stepping command on ``~/irrigation_step``, answered on
-   ``~/step_result`` and ``~/observation``) and ``via="service"`` (a command on ``~/irrigation``, its
-   acknowledgement, then the ``~/step`` service).
+   ``~/step_result`` and ``~/observation``) and ``via="service"`` (the typed ``~/step`` service,
+   crop_sim_interfaces/srv/Step: the command in the request, the StepResult and observation in the reply).
 
 All peers start once. On a shared machine the load changes from second to second, and a ratio of two
 figures measured at different moments mixes the load into it; so the measurements are interleaved: in each
@@ -296,7 +296,7 @@ def run(args) -> int:
             print(f"bare {name:16s} (all rounds) median {row['median_ms']:.3f} ms  mean {row['mean_ms']:.3f} ms  "
                   f"p99 {row['p99_ms']:.3f} ms  ({row['n']} calls)")
     for via, what in (("topic", "command on ~/irrigation_step -> step_result + observation"),
-                      ("service", "command on ~/irrigation + acknowledgement, ~/step service")):
+                      ("service", "typed ~/step service: command in, StepResult + observation out")):
         if via not in vias:
             continue
         b = figures["pooled"][f"bridge_{via}"]

@@ -10,16 +10,15 @@ the caller's node and executor (one thread; no background spinning), with ``call
     (float32 observation and float64 reward, exactly). A refusal arrives on ``<sim>/irrigation_status``.
     The day is named in the command, so a repeated message can never step twice (it would be for a past day).
 
-``via="service"`` (the general protocol any client can use; about two round trips per day):
-    1. publish ``[day, mm, episode]`` on ``<sim>/irrigation``;
-    2. wait for ``<sim>/irrigation_status`` to report it accepted (the command topic and the step service are
-       separate channels: without this wait the step could overtake the command);
-    3. call ``<sim>/step``: its response carries the summary and the new day's observation (float32 values
-       widened to float64 in JSON, exactly). With ``verify_topics`` the client also waits for the observation
-       topic and checks it equals the response's observation bit for bit.
+``via="service"`` (the typed service any client can use; one round trip per day):
+    call ``<sim>/step`` (crop_sim_interfaces/srv/Step) with ``irrigation_mm``, ``day`` and ``episode``: the
+    simulator checks the command as it checks one on ``<sim>/irrigation``, applies it and steps; the reply
+    carries the day's StepResult and the new day's float32 observation, exactly. With ``verify_topics`` the
+    client also waits for the observation topic and checks it equals the reply's observation bit for bit.
 
-``reset`` leaves the simulator's parameters as their user set them: the per-reset ``seed`` and
-``weather_season`` it asks for are set for that one reset, and their previous values restored right after.
+``reset`` calls ``<sim>/reset`` (crop_sim_interfaces/srv/Reset) with the season's ``seed`` and
+``weather_season`` in the request: the simulator's parameters stay as their user set them. The reply carries
+the season's FarmTerms and day 0's observation.
 
 Family tasks: the observation has the scenario's layout (29 values; :func:`scenario_layout` tells it from the
 simulator's ``scenario`` parameter before a reset, :attr:`SimClient.layout` after one), and the simulator
@@ -34,7 +33,6 @@ command for a day already stepped is refused).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
@@ -45,9 +43,10 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
+from crop_sim_interfaces.msg import StepResult
+from crop_sim_interfaces.srv import Reset, Step
 from std_msgs.msg import Float32MultiArray
 from std_msgs.msg import Float64MultiArray
-from std_srvs.srv import Trigger
 
 from crop_sim_ros import ros_interface as ri
 from crop_sim_ros.task.layout import PAPER, ObservationLayout, layout_of_size
@@ -91,8 +90,8 @@ class SimClient:
         self.timeout, self.ack_timeout, self.verify_topics = timeout, ack_timeout, verify_topics
         # keep-all: every client of a service receives every client's answers; a depth-10 queue loses its own
         # answer when another client's flood arrives first (seen under load)
-        self._step = node.create_client(Trigger, f"{self.sim}/{ri.STEP_SERVICE}", qos_profile=ri.SERVICE_CLIENT_QOS)
-        self._reset = node.create_client(Trigger, f"{self.sim}/{ri.RESET_SERVICE}", qos_profile=ri.SERVICE_CLIENT_QOS)
+        self._step = node.create_client(Step, f"{self.sim}/{ri.STEP_SERVICE}", qos_profile=ri.SERVICE_CLIENT_QOS)
+        self._reset = node.create_client(Reset, f"{self.sim}/{ri.RESET_SERVICE}", qos_profile=ri.SERVICE_CLIENT_QOS)
         self._set_parameters = node.create_client(SetParameters, f"{self.sim}/set_parameters")
         self._get_parameters = node.create_client(GetParameters, f"{self.sim}/get_parameters")
         self._command = node.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_TOPIC}", ri.COMMAND_QOS)
@@ -101,7 +100,7 @@ class SimClient:
         self._status = node.create_subscription(DiagnosticStatus, f"{self.sim}/{ri.IRRIGATION_STATUS_TOPIC}",
                                                 lambda m: self._acks.append(ri.status_values(m)), ri.COMMAND_QOS)
         self._topic_obs: deque[np.ndarray] = deque(maxlen=100)
-        self._results: deque[ri.StepResult] = deque(maxlen=100)
+        self._results: deque[StepResult] = deque(maxlen=100)
         self._obs_sub = self._result_sub = None
         if verify_topics or via == "topic":
             self._obs_sub = node.create_subscription(
@@ -110,9 +109,8 @@ class SimClient:
         if via == "topic":
             self._step_command = node.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_STEP_TOPIC}",
                                                        ri.COMMAND_QOS)
-            self._result_sub = node.create_subscription(
-                Float64MultiArray, f"{self.sim}/{ri.STEP_RESULT_TOPIC}",
-                lambda m: self._results.append(ri.STEP_RESULT.read(m)), ri.READER_QOS)
+            self._result_sub = node.create_subscription(StepResult, f"{self.sim}/{ri.STEP_RESULT_TOPIC}",
+                                                        lambda m: self._results.append(m), ri.READER_QOS)
         self._parameters: dict = {}
         self.episode = 0
         self.day = 0
@@ -121,6 +119,7 @@ class SimClient:
         self.layout: ObservationLayout = PAPER  # of the current season (from the reset's observation)
         self.limited = False  # the season's capacity or quota may cut a command (from the reset's farm terms)
         self.last_response: dict = {}
+        self.last_result = StepResult()  # of the latest step
         self.retries = 0
 
     # --- connection --------------------------------------------------------------------------------------
@@ -190,30 +189,24 @@ class SimClient:
     def reset(self, seed=None, weather_season=None, **parameters):
         """New season; ``seed`` None continues the simulator's random stream (like Gymnasium), UNCHANGED
         uses the simulator's own seed parameter; likewise ``weather_season`` (None: drawn). The seed and
-        season apply to this reset only: the simulator's parameters are restored right after it.
-        ``parameters`` (crop, scenario, ...) are set for good.
-        Returns (observation float32 (20,) or (29,): see :attr:`layout`, info dict: the simulator's reset
-        summary)."""
-        this_reset = {}
-        if seed is not UNCHANGED:
-            this_reset["seed"] = -1 if seed is None else int(seed)
-        if weather_season is not UNCHANGED:
-            this_reset["weather_season"] = -1 if weather_season is None else int(weather_season)
+        season apply to this reset only (they travel in the Reset request). ``parameters`` (crop, scenario, ...)
+        are set for good.
+        Returns (observation float32 (20,) or (29,): see :attr:`layout`, info dict: the reply's terms as
+        :func:`crop_sim_ros.ros_interface.reset_summary` gives them)."""
+        def requested(value) -> int:
+            return (Reset.Request.FROM_PARAMETER if value is UNCHANGED else Reset.Request.DRAW if value is None
+                    else int(value))
         self.set_parameters(**parameters)
-        previous = self.get_parameters(list(this_reset)) if this_reset else {}
-        changed = {name: value for name, value in this_reset.items() if previous[name] != value}
-        self._set(changed)
         self._topic_obs.clear()
-        try:
-            summary = self._trigger(self._reset)
-        finally:
-            self._set({name: previous[name] for name in changed})
+        response = self._call(self._reset, Reset.Request(seed=requested(seed), weather_season=requested(weather_season)))
+        summary = ri.reset_summary(response.terms, response.observation)
+        self.last_response = summary
         self.episode, self.day, self.ended = summary["episode"], summary["day"], False
         self.max_irrigation_mm = float(summary.get("max_irrigation_mm", math.inf))
         terms = summary.get("farm_terms") or {}
         self.limited = terms.get("quota_mm", None) is not None or terms.get("capacity_mm_per_day",
                                                                               math.inf) < self.max_irrigation_mm
-        obs = self._observation(summary)
+        obs = self._observation(summary["day"], response.observation)
         self.layout = layout_of_size(obs.size)
         return obs, summary
 
@@ -225,17 +218,19 @@ class SimClient:
         mm = float(mm)
         if self.via == "topic":
             return self._step_by_topic(mm)
-        self.command(mm)
         self._topic_obs.clear()
-        summary = self._trigger(self._step)
-        result = ri.StepResult.from_summary(summary)
+        response = self._call(self._step, Step.Request(irrigation_mm=mm, day=self.day, episode=self.episode))
+        result = self.last_result = response.result
+        summary = ri.step_summary(result, response.observation)
+        self.last_response = summary
         if result.episode != self.episode or result.day != self.day + 1:
             raise SimError(f"{self.sim}: expected episode {self.episode} day {self.day + 1}, got episode "
                            f"{result.episode} day {result.day} (another client is stepping this simulator)")
         self._check_applied(self.day, result.irrigation_mm, mm)
         self.day = result.day
         self.ended = result.terminated or result.truncated
-        return self._observation(summary), result.reward, result.terminated, result.truncated, summary
+        return (self._observation(result.day, response.observation), result.reward, result.terminated,
+                result.truncated, summary)
 
     def _step_by_topic(self, mm: float):
         day, episode = self.day, self.episode
@@ -276,8 +271,9 @@ class SimClient:
                     raise ServiceTimeout(f"{self.sim} did not step day {day} within {self.timeout:.1f} s") from None
                 self.retries += 1
         result, obs = found["result"], found["obs"]
+        self.last_result = result
         self._check_applied(day, result.irrigation_mm, mm)
-        summary = result.summary()
+        summary = ri.step_summary(result)
         self.last_response = summary
         self.day = day + 1
         self.ended = result.terminated or result.truncated
@@ -328,21 +324,19 @@ class SimClient:
                     raise
                 self.retries += 1
 
-    def _trigger(self, client) -> dict:
-        response = call(self.executor, client, Trigger.Request(), self.timeout)
-        try:
-            summary = json.loads(response.message)
-        except ValueError:
-            summary = {"error": response.message}
-        self.last_response = summary
+    def _call(self, client, request):
+        """The reply of a typed Step or Reset call; SimError with the simulator's reason if it refused."""
+        response = call(self.executor, client, request, self.timeout)
         if not response.success:
-            raise SimError(f"{client.srv_name}: {summary.get('error', response.message)}")
-        return summary
+            self.last_response = {"error": response.message}
+            raise SimError(f"{client.srv_name}: {response.message}")
+        return response
 
-    def _observation(self, summary: dict) -> np.ndarray:
-        obs = np.asarray(summary["observation"], dtype=np.float32)
+    def _observation(self, day: int, values) -> np.ndarray:
+        """A reply's observation (float32 values, exactly); with ``verify_topics``, checked bit for bit against
+        the observation topic of the same ``day``."""
+        obs = np.asarray(values, dtype=np.float32)
         if self.verify_topics:
-            day = summary["day"]
             spin_until(self.executor, lambda: any(o[ri.OBS_DAY] == day for o in self._topic_obs), self.timeout,
                        what=f"the observation topic of day {day}")
             topic = next(o for o in self._topic_obs if o[ri.OBS_DAY] == day)
