@@ -199,13 +199,27 @@ def learning_rate_at(settings, steps: int) -> float:
     return settings.learning_rate + (settings.final_learning_rate - settings.learning_rate) * done
 
 
+def generation(actor: ActorVector, theta: np.ndarray, adam: Adam, rng: np.random.Generator,
+               interface: AgentInterface, scenario, settings, steps: int) -> tuple[np.ndarray, int]:
+    """One generation from ``theta`` after ``steps`` field-days, every draw from ``rng``: (the new parameters,
+    the field-days it ran)."""
+    pairs, noise_std = settings.pairs, settings.noise_std
+    seasons, terms = generation_seasons(rng, scenario, settings.seasons)
+    noise = rng.standard_normal((pairs, actor.size))
+    candidates = np.concatenate([theta + noise_std * noise, theta - noise_std * noise])
+    episodes = candidates_episodes(actor, candidates, interface, scenario, seasons, terms,
+                                   seed=int(rng.integers(2 ** 31)))
+    fitness = episodes.episode_return.reshape(len(candidates), settings.seasons).mean(axis=1)
+    theta = theta + adam.step(antithetic_gradient(fitness, noise, noise_std), learning_rate_at(settings, steps))
+    return theta, int(episodes.days.sum())
+
+
 def evolve(model, interface: AgentInterface, scenario, settings, seed: int, checkpoint) -> int:
     """Run ES on ``model``'s actor for ``settings.timesteps`` field-days of ``scenario``'s training seasons (at most
     one generation more); ``checkpoint(steps, early)`` is called with the current parameters in ``model`` at the
     start, at the first generation past 1 % of the budget (``early`` True), and then every ``settings.eval_freq``
     field-days; the caller checkpoints the end. Returns the field-days run, with the final parameters in
     ``model``."""
-    pairs, noise_std, seasons_each = settings.pairs, settings.noise_std, settings.seasons
     actor = ActorVector(model.policy)
     theta = actor.get()
     adam = Adam(actor.size)
@@ -213,14 +227,8 @@ def evolve(model, interface: AgentInterface, scenario, settings, seed: int, chec
     steps = 0
     schedule = CheckpointSchedule(settings, checkpoint, lambda: actor.set(theta))
     while steps < settings.timesteps:
-        seasons, terms = generation_seasons(rng, scenario, seasons_each)
-        noise = rng.standard_normal((pairs, actor.size))
-        candidates = np.concatenate([theta + noise_std * noise, theta - noise_std * noise])
-        episodes = candidates_episodes(actor, candidates, interface, scenario, seasons, terms,
-                                       seed=int(rng.integers(2 ** 31)))
-        fitness = episodes.episode_return.reshape(len(candidates), seasons_each).mean(axis=1)
-        theta = theta + adam.step(antithetic_gradient(fitness, noise, noise_std), learning_rate_at(settings, steps))
-        steps += int(episodes.days.sum())
+        theta, days = generation(actor, theta, adam, rng, interface, scenario, settings, steps)
+        steps += days
         schedule.after(steps)
     actor.set(theta)
     return steps

@@ -31,6 +31,9 @@ This module imports jax, optax and evosax (``pip install crop_sim_ros[jax]``); n
 
 from __future__ import annotations
 
+import sys
+import time
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -166,20 +169,36 @@ def generation_key(seed: int, generation: int) -> jax.Array:
 
 def evolve_jax(model, interface: AgentInterface, scenario, settings, seed: int, checkpoint) -> int:
     """:func:`~.evolution.evolve` on JAX (same arguments, same checkpoints and return): ES on ``model``'s actor
-    for ``settings.timesteps`` field-days (at most one generation more); the final parameters in ``model``."""
+    for ``settings.timesteps`` field-days (at most one generation more); the final parameters in ``model``. Prints
+    (stderr) the generations' wall time apart from the checkpoints' (validation on the host, numpy)."""
     actor = ActorVector(model.policy)
+    clock = {"checkpoints_s": 0.0}
+
+    def timed_checkpoint(steps: int, early: bool) -> None:
+        start = time.perf_counter()
+        checkpoint(steps, early)
+        clock["checkpoints_s"] += time.perf_counter() - start
+
+    started = time.perf_counter()
     with jax.enable_x64(True):
         learner = JaxEvolution(scenario, interface, actor, settings)
         state = learner.start(actor.get(), jax.random.key(seed))
         rng = np.random.default_rng([seed, GENERATIONS_STREAM])
         steps, generation = 0, 0
-        schedule = CheckpointSchedule(settings, checkpoint, lambda: actor.set(learner.theta(state)))
+        schedule = CheckpointSchedule(settings, timed_checkpoint, lambda: actor.set(learner.theta(state)))
         while steps < settings.timesteps:
             seasons, terms = generation_seasons(rng, scenario, settings.seasons)
             state, _, days = learner.generation(state, generation_key(seed, generation), seasons, terms,
                                                 learning_rate_at(settings, steps))
+            if generation == 0:
+                clock["first_s"] = time.perf_counter() - started - clock["checkpoints_s"]
             steps += days
             generation += 1
             schedule.after(steps)
         actor.set(learner.theta(state))
+    loop_s = time.perf_counter() - started - clock["checkpoints_s"]
+    print(f"JAX ES on {jax.devices()[0].platform}: {generation} generations, {steps:,} field-days in {loop_s:.1f} s "
+          f"of ES ({clock['first_s']:.1f} s to the end of the first generation, compilation included; "
+          f"{steps / loop_s:,.0f} field-days/s), {clock['checkpoints_s']:.1f} s of checkpoints",
+          file=sys.stderr, flush=True)
     return steps
