@@ -19,8 +19,8 @@ pytest.importorskip("evosax")
 
 import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exists)
 from crop_agent_ros.learning import hyperparameters as hp  # noqa: E402
-from crop_agent_ros.learning.evolution import (Adam, ActorVector, antithetic_gradient, candidates_episodes,  # noqa: E402
-                                               generation_seasons)
+from crop_agent_ros.learning.evolution import (Adam, ActorVector, antithetic_gradient,  # noqa: E402
+                                               candidates_episodes, generation_seasons)
 from crop_agent_ros.learning.jax_evolution import PopulationRollout, open_es, tell  # noqa: E402
 from crop_agent_ros.policies.learned import AgentInterface, LearnedPolicy, ObservationScaler  # noqa: E402
 from crop_agent_ros.ros.process import isolated_ros_env  # noqa: E402
