@@ -29,7 +29,8 @@ setup(
     ],
     python_requires=">=3.11",
     install_requires=["numpy", "gymnasium", "refet", "PyYAML", "matplotlib", "pydantic>=2"],
-    extras_require={"jax": ["jax>=0.10"]},  # crop_sim_ros.task.jax_env (CPU by default; jax[cuda12] for a GPU)
+    # crop_sim_ros.task.jax_env and the JAX ES learner (CPU by default; jax[cuda12] for a GPU)
+    extras_require={"jax": ["jax>=0.10", "evosax>=0.3.2", "optax>=0.2.8"]},
     zip_safe=True,
     maintainer="Simulated farm team",
     maintainer_email="farm@example.org",

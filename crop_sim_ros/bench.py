@@ -1,5 +1,5 @@
 """``crop-sim bench``: throughput of the crop model (and of the irrigation environments, when present).
-``--backend jax`` adds the JAX environment beside the numpy vector env (:mod:`crop_sim_ros.task.jax_bench`).
+``--backend jax`` adds the model and the environment on JAX beside numpy's (:mod:`crop_sim_ros.task.jax_bench`).
 
 Prints field-days per second for one field (array path and scalar path) and for a batch of fields over a
 full season. Machines here are shared and noisy: every run first prints the CPU model and the load average,
@@ -12,54 +12,23 @@ from __future__ import annotations
 import argparse
 import os
 
-import numpy as np
-
-from .model import DailyWeather, Management, field_parameters, initial_state, repeat_parameters, step
-from .model import zhao2019_library
+from .model import DailyWeather, initial_state, step
 from .model.simple import SCALAR_MATH, scalar_parameters, scalar_state
+from .model_workload import IRRIGATION_MM, SEASON_DAYS, benton_potato, model_run, season_weather
 from .throughput import Rate, best_rate, machine_summary, measured
 from .usage import check_range
-
-SEASON_DAYS = 183
-
-
-def _season_weather(days: int, n_fields: int, seed: int) -> list[np.ndarray]:
-    """Synthetic but realistic Benton-summer weather, (days, n_fields): TMAX, TMIN degC, SRAD MJ m-2,
-    rain mm, ET0 mm (the model's cost does not depend on the values)."""
-    rng = np.random.default_rng(seed)
-    tmax = rng.uniform(15, 35, (days, n_fields))
-    return [tmax, tmax - rng.uniform(8, 16, (days, n_fields)), rng.uniform(8, 30, (days, n_fields)),
-            rng.exponential(4, (days, n_fields)) * (rng.random((days, n_fields)) < 0.1),
-            rng.uniform(2, 9, (days, n_fields))]
 
 
 def bench_model(n_fields: int, repeats: int = 3, seed: int = 0, seasons: int = 1) -> Rate:
     """Best-of-``repeats`` field-days per second of the array path for ``n_fields`` over ``seasons``
     seasons (several for a small batch: long enough for the load figures)."""
-    library = zhao2019_library()
-    params = repeat_parameters(field_parameters(library.species("potato"),
-                                                library.cultivar("potato", "Russet Burbank"),
-                                                library.soil("Benton USA potato"), Management(co2_ppm=369.0)),
-                               n_fields)
-    weather = _season_weather(SEASON_DAYS, n_fields, seed)
-    days = [DailyWeather(*(w[d] for w in weather)) for d in range(SEASON_DAYS)]
-    irrigation = np.full(n_fields, 5.0)
-
-    def run_once():
-        for _ in range(seasons):
-            state = initial_state(params)
-            for day in days:
-                state, _ = step(params, state, day, irrigation)
-
-    return best_rate(run_once, seasons * n_fields * SEASON_DAYS, repeats)
+    return best_rate(*model_run(n_fields, seed, seasons), repeats)
 
 
 def bench_scalar(repeats: int = 3, seed: int = 0, seasons: int = 1) -> Rate:
     """Best-of-``repeats`` field-days per second of the one-field scalar path over ``seasons`` seasons."""
-    library = zhao2019_library()
-    params = field_parameters(library.species("potato"), library.cultivar("potato", "Russet Burbank"),
-                              library.soil("Benton USA potato"), Management(co2_ppm=369.0))
-    weather = _season_weather(SEASON_DAYS, 1, seed)
+    params = benton_potato()
+    weather = season_weather(SEASON_DAYS, 1, seed)
     days = [DailyWeather(*(float(w[d, 0]) for w in weather)) for d in range(SEASON_DAYS)]
     one_field = scalar_parameters(params)
 
@@ -67,7 +36,7 @@ def bench_scalar(repeats: int = 3, seed: int = 0, seasons: int = 1) -> Rate:
         for _ in range(seasons):
             state = scalar_state(initial_state(params))
             for day in days:
-                state, _ = step(one_field, state, day, 5.0, xp=SCALAR_MATH)
+                state, _ = step(one_field, state, day, IRRIGATION_MM, xp=SCALAR_MATH)
 
     return best_rate(run_once, seasons * SEASON_DAYS, repeats)
 
@@ -78,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=int, default=3, help="best of this many seasons (default 3, at most 100)")
     parser.add_argument("--model-only", action="store_true", help="skip the environment benchmarks")
     parser.add_argument("--backend", choices=("numpy", "jax"), default="numpy",
-                        help="jax: also the JAX environment beside the numpy vector env, float64 and float32, "
+                        help="jax: also the model and the environment on JAX beside numpy, float64 and float32, "
                              "interleaved, also with --model-only (needs pip install crop_sim_ros[jax])")
 
 
@@ -99,9 +68,11 @@ def run(args: argparse.Namespace) -> int:
         bench_env(num_fields=args.fields, repeats=args.repeats)
     if args.backend == "jax":
         try:
-            from .task.jax_bench import bench_jax  # imports jax; only when asked for
+            from .task.jax_bench import bench_jax, bench_jax_model  # imports jax; only when asked for
         except ImportError as error:
             raise SystemExit(f"--backend jax needs JAX (pip install crop_sim_ros[jax]): {error}") from None
+        print("SIMPLE model on JAX and on numpy, interleaved:")
+        bench_jax_model(num_fields=args.fields, numpy_fields=args.fields, repeats=args.repeats)
         print("JAX environment and numpy vector environment, interleaved:")
         bench_jax(num_fields=args.fields, repeats=args.repeats)
     print(f"machine after the run: load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

@@ -71,14 +71,15 @@ class ActorVector:
         return out
 
 
-def actor_outputs(layers: list[tuple[np.ndarray, np.ndarray]], inputs: np.ndarray) -> np.ndarray:
+def actor_outputs(layers: list[tuple[np.ndarray, np.ndarray]], inputs: np.ndarray, xp=np) -> np.ndarray:
     """The P actors' outputs (P, B) for their (P, B, inputs) inputs: tanh hidden layers, linear last layer
-    (the mean action, before the [-1, 1] clip), as SB3's deterministic ``predict``."""
+    (the mean action, before the [-1, 1] clip), as SB3's deterministic ``predict``. ``xp``: numpy, or jax.numpy
+    (:mod:`.jax_evolution`, under ``jit``)."""
     h = inputs
     for j, (weight, bias) in enumerate(layers):
         h = h @ weight + bias[:, None, :]
         if j < len(layers) - 1:
-            h = np.tanh(h)
+            h = xp.tanh(h)
     return h[..., 0]
 
 
@@ -168,36 +169,66 @@ class CheckpointSchedule:
             self.checkpoint(steps, early=False)
 
 
+# The second word of the seed of a run's generator of generations (seasons, terms; numpy ES: also the noise)
+GENERATIONS_STREAM = 4_373
+
+
+def generation_seasons(rng: np.random.Generator, scenario, seasons_each: int) -> tuple[np.ndarray, dict]:
+    """A generation's ``seasons_each`` training seasons (indices into ``scenario``'s pool, without replacement)
+    and their episode terms (name -> (seasons_each,) arrays), from ``rng``: what every candidate runs."""
+    from ..policies.rollout import draw_terms
+    seasons = rng.choice(scenario.n_seasons, seasons_each, replace=False)  # (train_task refused more than the pool)
+    return seasons, draw_terms(scenario, seasons, int(rng.integers(2 ** 31)))
+
+
+def candidates_episodes(actor: ActorVector, candidates: np.ndarray, interface: AgentInterface, scenario,
+                        seasons: np.ndarray, terms: dict, seed: int):
+    """Every candidate (rows of ``candidates``) on every one of ``seasons`` with ``terms``, all at once, the
+    observation noise one stream from ``seed``: the :class:`~crop_agent_ros.policies.rollout.Episodes` of
+    candidate p's fields p S .. (p + 1) S - 1."""
+    from ..policies.rollout import run_episodes
+    population = Population(actor, candidates, len(seasons), interface)
+    return run_episodes(population, scenario, np.tile(seasons, len(candidates)), seed=seed,
+                        terms={k: np.tile(v, len(candidates)) for k, v in terms.items()})
+
+
+def learning_rate_at(settings, steps: int) -> float:
+    """The step size after ``steps`` field-days: linear from ``learning_rate`` to ``final_learning_rate`` over
+    ``timesteps``, then constant."""
+    done = min(1.0, steps / settings.timesteps)
+    return settings.learning_rate + (settings.final_learning_rate - settings.learning_rate) * done
+
+
+def generation(actor: ActorVector, theta: np.ndarray, adam: Adam, rng: np.random.Generator,
+               interface: AgentInterface, scenario, settings, steps: int) -> tuple[np.ndarray, int]:
+    """One generation from ``theta`` after ``steps`` field-days, every draw from ``rng``: (the new parameters,
+    the field-days it ran)."""
+    pairs, noise_std = settings.pairs, settings.noise_std
+    seasons, terms = generation_seasons(rng, scenario, settings.seasons)
+    noise = rng.standard_normal((pairs, actor.size))
+    candidates = np.concatenate([theta + noise_std * noise, theta - noise_std * noise])
+    episodes = candidates_episodes(actor, candidates, interface, scenario, seasons, terms,
+                                   seed=int(rng.integers(2 ** 31)))
+    fitness = episodes.episode_return.reshape(len(candidates), settings.seasons).mean(axis=1)
+    theta = theta + adam.step(antithetic_gradient(fitness, noise, noise_std), learning_rate_at(settings, steps))
+    return theta, int(episodes.days.sum())
+
+
 def evolve(model, interface: AgentInterface, scenario, settings, seed: int, checkpoint) -> int:
     """Run ES on ``model``'s actor for ``settings.timesteps`` field-days of ``scenario``'s training seasons (at most
     one generation more); ``checkpoint(steps, early)`` is called with the current parameters in ``model`` at the
     start, at the first generation past 1 % of the budget (``early`` True), and then every ``settings.eval_freq``
     field-days; the caller checkpoints the end. Returns the field-days run, with the final parameters in
     ``model``."""
-    from ..policies.rollout import draw_terms, run_episodes
-
-    pairs, noise_std, seasons_each = settings.pairs, settings.noise_std, settings.seasons
-    n_pool = scenario.n_seasons  # (train_task refused more seasons per generation)
     actor = ActorVector(model.policy)
     theta = actor.get()
     adam = Adam(actor.size)
-    rng = np.random.default_rng([seed, 4_373])
-    lr0, lr1 = settings.learning_rate, settings.final_learning_rate
+    rng = np.random.default_rng([seed, GENERATIONS_STREAM])
     steps = 0
     schedule = CheckpointSchedule(settings, checkpoint, lambda: actor.set(theta))
     while steps < settings.timesteps:
-        seasons = rng.choice(n_pool, seasons_each, replace=False)
-        terms = draw_terms(scenario, seasons, int(rng.integers(2 ** 31)))
-        noise = rng.standard_normal((pairs, actor.size))
-        candidates = np.concatenate([theta + noise_std * noise, theta - noise_std * noise])
-        population = Population(actor, candidates, seasons_each, interface)
-        episodes = run_episodes(population, scenario, np.tile(seasons, len(candidates)),
-                                seed=int(rng.integers(2 ** 31)),
-                                terms={k: np.tile(v, len(candidates)) for k, v in terms.items()})
-        fitness = episodes.episode_return.reshape(len(candidates), seasons_each).mean(axis=1)
-        done = min(1.0, steps / settings.timesteps)
-        theta = theta + adam.step(antithetic_gradient(fitness, noise, noise_std), lr0 + (lr1 - lr0) * done)
-        steps += int(episodes.days.sum())
+        theta, days = generation(actor, theta, adam, rng, interface, scenario, settings, steps)
+        steps += days
         schedule.after(steps)
     actor.set(theta)
     return steps

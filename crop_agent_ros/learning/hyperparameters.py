@@ -18,7 +18,7 @@ import re
 from importlib import resources
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from crop_sim_ros.usage import UsageError, shown
 
@@ -96,11 +96,20 @@ class FamilyPPO(GradientSettings, FamilyRecipe):
 
 class EvolutionStrategies(FamilyRecipe):
     """Evolution strategies (:mod:`.evolution`): ``pairs`` antithetic candidate pairs per generation, each
-    perturbed by ``noise_std``, all running the same ``seasons`` training seasons."""
+    perturbed by ``noise_std``, all running the same ``seasons`` training seasons. ``backend``: ``numpy`` (the
+    published agents' learner, :mod:`.evolution`) or ``jax`` (the same recipe with evosax, a generation in one
+    jitted call: :mod:`.jax_evolution`; no ``paw_filter``)."""
 
     pairs: int = Field(ge=1, le=1_000)
     noise_std: float = Field(gt=0, le=10)
     seasons: int = Field(ge=1, le=1_000)  # (at most a task's pool: every task draws 1,000 seasons or more)
+    backend: Literal["numpy", "jax"] = "numpy"
+
+    @model_validator(mode="after")
+    def _jax_without_filter(self):
+        if self.backend == "jax" and self.paw_filter:
+            raise ValueError("backend jax has no soil-water filter: train paw_filter agents with backend numpy")
+        return self
 
 
 class GroupRelativePPO(FamilyRecipe):
@@ -203,7 +212,10 @@ def _problems(error: ValidationError, model: type[Recipe]) -> str:
         loc = problem["loc"]
         if any(len(other) > len(loc) and other[:len(loc)] == loc for other in locations):
             continue  # a list whose item was refused: the item's problem says it
-        where = ".".join(str(part) for part in problem["loc"]) or "settings"
+        if not loc:  # a rule across settings (a model validator): its message names them
+            problems.append(f"hyperparameters: {problem['msg'].removeprefix('Value error, ')}")
+            continue
+        where = ".".join(str(part) for part in loc)
         given = "" if problem["type"] == "missing" else " " + shown(problem["input"])
         hint = f" (known: {', '.join(model.model_fields)})" if problem["type"] == "extra_forbidden" else ""
         problems.append(f"hyperparameter {where}{given}: {problem['msg']}{hint}")

@@ -1,7 +1,7 @@
 """``crop-sim train --task TASK --algorithm ppo|es|grpo`` on a family task: PPO (Stable-Baselines3), evolution
-strategies (:mod:`.evolution`) or PPO with group-relative advantages (:mod:`.grpo`), on the task's training
-seasons (generated weather only; the held-out real seasons and the held-out climate are never seen). The
-settings are the recipe of :mod:`.hyperparameters`.
+strategies (:mod:`.evolution`; with the recipe's ``backend: jax``, :mod:`.jax_evolution`) or PPO with
+group-relative advantages (:mod:`.grpo`), on the task's training seasons (generated weather only; the held-out
+real seasons and the held-out climate are never seen). The settings are the recipe of :mod:`.hyperparameters`.
 
 The network's observation and action are those of :mod:`crop_agent_ros.policies.learned` (normalised raw
 observation, action in mm; ``paw_filter``: also a soil-water filter's PAW estimate). Training reward of PPO:
@@ -122,6 +122,16 @@ def select_model(out: Path) -> dict:
     return {"timesteps": steps, "validation_return": float(best["validation_return"]), "file": source.name}
 
 
+def jax_evolution_learner():
+    """The JAX ES learner (:mod:`.jax_evolution`), imported when asked for (it imports jax and evosax)."""
+    try:
+        from .jax_evolution import evolve_jax as learner
+    except ImportError as error:
+        from crop_sim_ros.usage import UsageError
+        raise UsageError(f"es backend jax needs JAX and evosax (pip install crop_sim_ros[jax]): {error}") from None
+    return learner
+
+
 def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progress: bool = True) -> dict:
     """Train ``algorithm`` on the family task ``scenario`` with ``settings`` (its recipe, validated by
     :mod:`.hyperparameters`); writes the run to ``out`` and returns its summary."""
@@ -236,7 +246,7 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
             checkpoint(model, steps)
 
         training_starts()
-        learner = evolve if algorithm == "es" else grpo
+        learner = grpo if algorithm == "grpo" else evolve if settings.backend == "numpy" else jax_evolution_learner()
         steps_run = learner(model, interface, scenario, settings, seed, own_loop_checkpoint)
     training_s = time.perf_counter() - started
     checkpoint(model, steps_run)
