@@ -29,6 +29,8 @@ COMMANDS = {
                   "tune a family task's water-budget rule on generated training seasons"),
     "sweep": ("crop_agent_ros.scale.sweep", "training and evaluation sweeps on Ray Tune (local or a cluster)"),
     "sweep-bench": ("crop_agent_ros.scale.bench", "benchmark sweep trials per hour with 1 and with 2 CPUs"),
+    "es-bench": ("crop_agent_ros.learning.es_bench",
+                 "benchmark one evolution strategies generation: the numpy learner beside the JAX learner"),
     "ros-bench": ("crop_agent_ros.ros.bench", "benchmark days per second through ROS 2 against bare rclpy"),
     "leaderboard": ("crop_agent_ros.leaderboard",
                     "write the results page and the README's excerpt from the committed evaluation summaries"),

@@ -17,7 +17,7 @@ project's venv; CuPy optional) and no network, from the repository root:
    per operation) at 1 M fields when CuPy is installed;
 3. environment: the JAX environment of benton-generated at 1 M fields, 200 days, float64 and float32, beside the
    numpy vector environment's 10,000 (:func:`crop_sim_ros.task.jax_bench.bench_jax`);
-4. one ES generation of the recipe, numpy learner and JAX learner in turn (``crop_agent_ros.learning.es_bench``);
+4. one ES generation of the recipe, numpy learner and JAX learner in turn (``crop-sim es-bench``);
 5. the ES recipe: ``crop-sim train --task benton-quota --algorithm es --hyperparams backend=jax --seed 0``, its
    wall time measured around the command (compilation, validation checkpoints and start-up included) and the ES
    loop's own time (the train's ``JAX ES on gpu: ...`` line);
@@ -117,9 +117,9 @@ def environment(sizes: dict) -> None:
 
 
 def es_generation(sizes: dict) -> None:
-    from crop_agent_ros.learning.es_bench import main
+    from crop_agent_ros.cli import main
     section("one ES generation of the recipe: numpy learner and JAX learner in turn")
-    main(["--task", TASK, "--repeats", str(sizes["repeats"]), *sizes["es_bench"]])
+    main(["es-bench", "--task", TASK, "--repeats", str(sizes["repeats"]), *sizes["es_bench"]])
 
 
 def crop_sim(arguments: list[str], log: Path) -> tuple[int, float]:

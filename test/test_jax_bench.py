@@ -38,11 +38,11 @@ def test_the_gpu_check_runs_its_whole_path_at_tiny_sizes(tmp_path):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--task", "benton-generated"], "es_bench: --task 'benton-generated': not a family task"),
-    (["--repeats", "0"], "es_bench: --repeats: 0 is not in 1..100"),
-    (["--pairs", "0"], "es_bench: hyperparameter pairs 0: Input should be greater than or equal to 1"),
+    (["--task", "benton-generated"], "crop-sim es-bench: --task 'benton-generated': not a family task"),
+    (["--repeats", "0"], "crop-sim es-bench: --repeats: 0 is not in 1..100"),
+    (["--pairs", "0"], "crop-sim es-bench: hyperparameter pairs 0: Input should be greater than or equal to 1"),
 ])
 def test_the_es_benchmark_refuses_bad_input_in_one_line(argv, message):
-    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.learning.es_bench", *argv], capture_output=True,
+    done = subprocess.run([str(Path(sys.executable).parent / "crop-sim"), "es-bench", *argv], capture_output=True,
                           text=True, timeout=300, cwd=REPO)
     assert done.returncode == 2 and done.stderr.strip().splitlines()[-1].startswith(message), done.stderr

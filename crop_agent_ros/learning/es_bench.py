@@ -1,4 +1,4 @@
-"""``python -m crop_agent_ros.learning.es_bench [--task T] [--repeats 3]``: field-days per second of one evolution
+"""``crop-sim es-bench [--task T] [--repeats 3]``: field-days per second of one evolution
 strategies generation, the numpy learner (:func:`.evolution.generation`, the published agents') beside the JAX
 learner (:mod:`.jax_evolution`, one jitted call), interleaved.
 
@@ -116,19 +116,3 @@ def run(args: argparse.Namespace) -> int:
     print(f"machine after the run: load average {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 
-
-def main(argv: list[str] | None = None) -> int:
-    import sys
-    from crop_sim_ros.usage import UsageError
-    parser = argparse.ArgumentParser(prog="python -m crop_agent_ros.learning.es_bench",
-                                     description=__doc__.split("\n\n")[0])
-    add_arguments(parser)
-    try:
-        return run(parser.parse_args(argv))
-    except UsageError as error:
-        print(f"es_bench: {error}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
