@@ -29,6 +29,7 @@ SUMMARIES = Path("results/summaries")
 PAGE = Path("docs/leaderboard.md")
 README = Path("README.md")
 START, END = "<!-- leaderboard:start -->", "<!-- leaderboard:end -->"
+OLD_RULE = "budget-rule"  # the project's water-budget rule: a labelled weaker baseline where the paced rule is stronger
 HEADROOM_WORTH_LEARNING_PCT = 2.0  # issue 33: a set where a rule leaves less to a causal controller is not
 README_ROWS_MAX = 25  # the front page's excerpt stays short; the page holds the rest
 NAME_PATTERN = r"^[a-z0-9][a-z0-9._-]*$"  # a task or summary name: a file name, never a path
@@ -322,7 +323,7 @@ def _planned_set(planner: dict | None, set_name: str) -> dict | None:
 
 def _planning_cost(planned: dict) -> str:
     per_season = planned["planning_cpu_s"] / planned["seasons"]
-    return f"{_duration(planned['planning_cpu_s'])} CPU ({per_season:.0f} s a season)"
+    return f"{_duration(planned['planning_cpu_s'])} CPU ({per_season:.0f} s CPU a season)"
 
 
 def headroom(planned: dict) -> str:
@@ -351,7 +352,8 @@ def _limit_table(task, planned: dict, headline: dict) -> list[str]:
               _ratio(planned["planner"]["ratio_to_strongest_rule"], planned["planner"]["ratio_to_strongest_rule_ci"]),
               _planning_cost(planned)]]
     for rule in rules:
-        label = "strongest rule" if rule["policy"] == strongest else "weaker rule"
+        label = ("strongest rule" if rule["policy"] == strongest
+                 else "old rule" if rule["policy"] == OLD_RULE else "weaker rule")
         cells.append([f"{rule['policy']} ({label})", name, _usd(rows[rule["policy"]]["return_usd_ha"]), _regret(rule),
                       f"{rows[rule['policy']]['regret_pct_of_reference']:.2f} %",
                       _ratio(rule["ratio_to_strongest_rule"], rule["ratio_to_strongest_rule_ci"]), "-"])

@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import glob
 import json
+import shlex
 import sys
 from pathlib import Path
 
@@ -152,7 +153,8 @@ def planner_summary(table: dict, runs: list[dict]) -> dict:
         summary = set_summary(entry, entry["terms_seed"] - base, table["seeds"], _planner_returns(run, entry))
         sets.append({**summary, "continuations": run["settings"]["pool_generator"],
                      "planned_on": run["task"], "planning_cpu_s": run["planning_cpu_s"], "wall_s": run["wall_s"],
-                     "decisions": run["decisions"], "command": " ".join(run["command"])})
+                     "decisions": run["decisions"],
+                     "command": shlex.join(["python", "-m", "experiments.planners", *run["command"][1:]])})
     if by_set:
         raise ValueError(f"--runs: set {next(iter(by_set))} is not in the table")
     if not sets:

@@ -139,9 +139,9 @@ def small_config(task: str = "benton-quota") -> dict:
 
 
 def small_tree(root: Path, config: dict | None = None, readme: str | None = "# Farm\n\n"
-               f"{lb.START}\nold rows\n{lb.END}\n\nmore text\n") -> Path:
+               f"{lb.START}\nold rows\n{lb.END}\n\nmore text\n", table: dict | None = None) -> Path:
     (root / "results" / "summaries").mkdir(parents=True)
-    write_summary(root / "results" / "summaries" / "benton-quota-es.json", synthetic_table(), run_records())
+    write_summary(root / "results" / "summaries" / "benton-quota-es.json", table or synthetic_table(), run_records())
     (root / "results" / "leaderboard.yaml").write_text(yaml.safe_dump(config or small_config(), sort_keys=False))
     if readme is not None:
         (root / "README.md").write_text(readme)
@@ -359,11 +359,11 @@ def planner_run(regrets=(100.0, 160.0), task: str = "benton-quota") -> dict:
                      for season, (o, r) in enumerate(zip(oracle, regrets))]}
 
 
-def planned_tree(root: Path, regrets=(100.0, 160.0), table: dict | None = None) -> Path:
+def planned_tree(root: Path, regrets=(100.0, 160.0), table: dict | None = None, headline: dict | None = None) -> Path:
     from experiments.planners_summary import planner_summary
     config = small_config()
     config["tasks"][0]["planner"] = "benton-quota-planner"
-    root = small_tree(root, config)
+    root = small_tree(root, config, table=headline)
     summary = planner_summary(table or planned_table(), [planner_run(regrets)])
     (root / "results" / "summaries" / "benton-quota-planner.json").write_text(dumps(summary) + "\n")
     return root
@@ -418,7 +418,7 @@ def test_the_page_shows_the_causal_limit_of_each_planned_set(tmp_path, capsys):
         "| budget-rule (strongest rule)", "| es (agent)"]
     assert lines[1].startswith("| causal planner (knows the weather so far and its climate) | benton-quota-planner "
                                "| 16,030 | 130 [")
-    assert "| 0.80 % | 0.31 [" in lines[1] and lines[1].endswith("| 61 s CPU (30 s a season) |")
+    assert "| 0.80 % | 0.31 [" in lines[1] and lines[1].endswith("| 61 s CPU (30 s CPU a season) |")
     assert lines[3].startswith("| es (agent) | benton-quota-es | 15,974 | 186 [103, 274] | 1.15 % | 0.44 [0.23, 0.67] |")
     assert "Headroom (budget-rule's regret - the causal planner's): 294 [" in limit
     assert "USD/ha, 1.82 % [" in limit and "of the oracle's return: under 2 %" in limit
@@ -460,3 +460,21 @@ def test_a_malformed_planner_summary_is_refused_with_one_line(tmp_path, capsys, 
     error = capsys.readouterr().err
     assert error.startswith("crop-sim leaderboard: results/summaries/benton-quota-planner.json: ")
     assert error.count("\n") == 1 and message in error
+
+
+def test_the_strongest_rule_comes_first_and_the_budget_rule_is_labelled_the_old_rule(tmp_path):
+    table = planned_table()
+    evaluated = table["sets"][0]
+    evaluated["returns_usd_ha"]["paced-rule"] = [[[o - r] * 3 for o, r in zip(evaluated["oracle_returns_usd_ha"],
+                                                                              (150.0, 170.0))]]
+    evaluated["rows"].insert(2, _row("paced-rule", "rule", ret=16000.3, regret=160.0, ci=(150.0, 170.0), pct=0.99))
+    for row in evaluated["rows"]:
+        row["reference_rule"] = "paced-rule"
+    root = planned_tree(tmp_path, table=table, headline=table)
+    assert leaderboard(root) == 0
+    page = (root / "docs" / "leaderboard.md").read_text()
+    rules = [line for line in page.splitlines() if line.startswith(("| paced-rule (", "| budget-rule ("))]
+    assert rules[0].startswith("| paced-rule (strongest rule) | benton-quota-es | 16,000 | 160 [150, 170] | 0.99 % "
+                               "| 1.00 [1.00, 1.00] |")
+    assert rules[1].startswith("| budget-rule (old rule) | benton-quota-es | 15,737 | 424 [400, 447] | 2.62 % | 2.65 [")
+    assert "Headroom (paced-rule's regret - the causal planner's): 30 [" in page
