@@ -39,8 +39,8 @@ from crop_agent_ros.learning.evaluate_task import RULE, Resamples, _ratio, inter
 from crop_agent_ros.learning.summary import (PLANNER_KIND, RATIO_DIGITS, SUMMARY_FORMAT, USD_DIGITS, _interval,
                                              _rounded, check_planner_summary, dumps)
 
+PER_SET_SETTINGS = ("pool_generator", "pools")  # the set's own climate: recorded per set as its continuations
 ORACLE_MATCH_USD_HA = 1e-6  # a run's oracle return per season against the table's: the same computation
-HEADROOM_WORTH_LEARNING_PCT = 2.0  # issue 33: a set is worth learning where the headroom reaches 2 % of the oracle
 
 
 def _rules(entry: dict) -> dict[str, np.ndarray]:
@@ -146,7 +146,7 @@ def planner_summary(table: dict, runs: list[dict]) -> dict:
         if run is None:
             continue
         _same_planning_problem(table, run)
-        described = {key: value for key, value in run["settings"].items() if key != "pool_generator"}
+        described = {key: value for key, value in run["settings"].items() if key not in PER_SET_SETTINGS}
         if settings not in (None, described):
             raise ValueError(f"--runs: {entry['name']} was planned with other settings than the sets before it")
         settings = described
