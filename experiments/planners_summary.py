@@ -93,7 +93,10 @@ def set_summary(entry: dict, position: int, seeds: dict, planner_returns: np.nda
         "headroom_ci_usd_ha": _usd_interval(headroom),
         "headroom_pct_of_oracle": _rounded(100 * (means[strongest] - means["planner"]) / oracle_mean, RATIO_DIGITS),
         "headroom_pct_ci": _interval(*interval(100 * headroom / oracle_mean), RATIO_DIGITS),
-        "season_regrets_usd_ha": [_rounded(value, USD_DIGITS) for value in regret["planner"][0, :, 0]],
+        # per season [season, oracle return, planner regret], unrounded: a later summary re-pairs them with
+        # re-tuned rules exactly (:func:`runs_of`)
+        "per_season_usd_ha": [[int(season), float(o), float(r)]
+                              for season, o, r in zip(entry["seasons"], oracle, regret["planner"][0, :, 0])],
     }
 
 
@@ -112,6 +115,21 @@ def _planner_returns(run: dict, entry: dict) -> np.ndarray:
         raise ValueError(f"{entry['name']}: the run's oracle returns are not the table's (other seasons, terms or "
                          f"task)")
     return oracle - np.array([by_season[season]["mpc_regret_usd_ha"] for season in seasons])
+
+
+def runs_of(document: dict) -> list[dict]:
+    """The planner runs a ``--runs`` file holds: a run of ``python -m experiments.planners --out``, or each set of
+    a planner summary written before (its seasons' oracle returns and planner regrets, as the run had them):
+    what lets a rule re-tuned since be paired with the planner again without re-planning."""
+    if document.get("kind") != PLANNER_KIND:
+        return [document]
+    check_planner_summary(document)
+    return [{"task": s["planned_on"], "set": s["name"], "command": shlex.split(s["command"])[2:],
+             "settings": {**document["planner"], "pool_generator": s["continuations"]},
+             "planning_cpu_s": s["planning_cpu_s"], "wall_s": s["wall_s"], "decisions": s["decisions"],
+             "rows": [{"season": season, "oracle_usd_ha": oracle, "mpc_regret_usd_ha": regret}
+                      for season, oracle, regret in s["per_season_usd_ha"]]}
+            for s in document["sets"]]
 
 
 def _same_planning_problem(table: dict, run: dict) -> None:
@@ -179,7 +197,7 @@ def main(argv=None) -> int:
     try:
         table = json.loads(Path(args.table).read_text())
         names = sorted({name for pattern in args.runs for name in (glob.glob(pattern) or [pattern])})
-        runs = [json.loads(Path(name).read_text()) for name in names]
+        runs = [run for name in names for run in runs_of(json.loads(Path(name).read_text()))]
         summary = planner_summary(table, runs)
     except (OSError, ValueError, KeyError, TypeError) as error:
         print(f"planners_summary: {str(error).strip(chr(39))}", file=sys.stderr)

@@ -386,7 +386,8 @@ def test_the_planner_summary_pairs_the_planner_with_the_rules_of_the_evaluation(
     low, high = planned["headroom_ci_usd_ha"]
     assert low <= 293.5 <= high and low > 0  # every season: the planner below the rule
     assert planned["planner"]["paired_wins"] == 1.0
-    assert planned["season_regrets_usd_ha"] == [100.0, 160.0] and planned["planning_cpu_s"] == 61.0
+    assert planned["per_season_usd_ha"] == [[0, 18792.0, 100.0], [1, 13528.6, 160.0]]
+    assert planned["planning_cpu_s"] == 61.0
 
 
 def summary_rule(table: dict) -> dict:
@@ -446,7 +447,7 @@ def test_a_planner_summary_against_other_rule_regrets_is_refused_as_stale(tmp_pa
 @pytest.mark.parametrize("change, message", [
     (lambda s: s.update(kind="evaluation"), "not a planner summary (kind: String should match pattern"),
     (lambda s: s["sets"][0].pop("headroom_usd_ha"), "not a planner summary (sets.0.headroom_usd_ha: Field required)"),
-    (lambda s: s["sets"][0].update(season_regrets_usd_ha=[1.0]), "set heldout-real: 2 seasons, 1 season regrets"),
+    (lambda s: s["sets"][0].update(per_season_usd_ha=[[0, 1.0, 1.0]]), "set heldout-real: 2 seasons, 1 rows per season"),
     (lambda s: s.update(task="climates-quota"), "the planner of 'climates-quota', listed under task 'benton-quota'"),
     (lambda s: s["sets"][0].update(name="far-benton"), "set far-benton is not a set of benton-quota-es"),
 ])
@@ -478,3 +479,19 @@ def test_the_strongest_rule_comes_first_and_the_budget_rule_is_labelled_the_old_
                                "| 1.00 [1.00, 1.00] |")
     assert rules[1].startswith("| budget-rule (old rule) | benton-quota-es | 15,737 | 424 [400, 447] | 2.62 % | 2.65 [")
     assert "Headroom (paced-rule's regret - the causal planner's): 30 [" in page
+
+
+def test_a_stale_planner_summary_is_paired_again_with_the_new_rule_without_re_planning(tmp_path, capsys):
+    from experiments import planners_summary
+    root = planned_tree(tmp_path, table=planned_table(rule_regrets=(300.0, 347.0)))
+    assert leaderboard(root) == 2  # stale: the rule changed since
+    path = root / "results" / "summaries" / "benton-quota-planner.json"
+    stale = json.loads(path.read_text())
+    (tmp_path / "table.json").write_text(json.dumps(planned_table()))  # the evaluation with today's rule
+    assert planners_summary.main(["--table", str(tmp_path / "table.json"), "--runs", str(path), "--out", str(path)]) == 0
+    fresh = json.loads(path.read_text())
+    assert fresh["sets"][0]["planner"]["regret_usd_ha"] == stale["sets"][0]["planner"]["regret_usd_ha"] == 130.0
+    assert fresh["sets"][0]["per_season_usd_ha"] == stale["sets"][0]["per_season_usd_ha"]
+    assert fresh["sets"][0]["command"] == stale["sets"][0]["command"]
+    assert fresh["sets"][0]["headroom_usd_ha"] == 293.5 != stale["sets"][0]["headroom_usd_ha"]
+    assert leaderboard(root) == 0

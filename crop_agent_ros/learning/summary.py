@@ -254,7 +254,7 @@ def _planner_models():
         headroom_ci_usd_ha: Interval = Field(min_length=2, max_length=2)
         headroom_pct_of_oracle: float
         headroom_pct_ci: Interval = Field(min_length=2, max_length=2)
-        season_regrets_usd_ha: list[float] = Field(min_length=1)
+        per_season_usd_ha: list[tuple[int, float, float]] = Field(min_length=1)  # season, oracle return, planner regret
         continuations: str = Field(min_length=1)
         planned_on: str = Field(min_length=1)
         planning_cpu_s: float = Field(ge=0)
@@ -292,7 +292,7 @@ def check_planner_summary(value) -> dict:
         if evaluation_set["strongest_rule"] not in rules or names.count(evaluation_set["name"]) > 1:
             raise ValueError(f"set {evaluation_set['name']}: its strongest rule is none of its rules, or "
                              "the set is listed twice")
-        if len(evaluation_set["season_regrets_usd_ha"]) != evaluation_set["seasons"]:
+        if len(evaluation_set["per_season_usd_ha"]) != evaluation_set["seasons"]:
             raise ValueError(f"set {evaluation_set['name']}: {evaluation_set['seasons']} seasons, "
-                             f"{len(evaluation_set['season_regrets_usd_ha'])} season regrets")
+                             f"{len(evaluation_set['per_season_usd_ha'])} rows per season")
     return value
