@@ -183,7 +183,8 @@ def _check_planned_set(planned: dict, evaluated: dict, where: Path, headline: st
             or planned["strongest_rule"] != reference_rule(evaluated)["policy"]):
         raise UsageError(f"{where}: set {planned['name']}: its rule regrets ({_rule_regrets(mine)}) are not "
                          f"{headline}'s ({_rule_regrets(rules)}): a rule changed since; re-run "
-                         "`python -m experiments.planners_summary` on a fresh evaluation's table.json")
+                         f"`python -m experiments.planners_summary --table <a fresh evaluation's table.json> --runs "
+                         f"{where} --out {where}` (no re-planning)")
 
 
 def _rule_regrets(regrets: dict[str, float]) -> str:

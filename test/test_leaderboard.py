@@ -441,6 +441,8 @@ def test_a_planner_summary_against_other_rule_regrets_is_refused_as_stale(tmp_pa
     assert error.count("\n") == 1 and error.startswith(
         "crop-sim leaderboard: results/summaries/benton-quota-planner.json: set heldout-real: its rule regrets "
         "(budget-rule 323.5) are not benton-quota-es's (budget-rule 423.5): a rule changed since; re-run")
+    assert "--runs results/summaries/benton-quota-planner.json --out results/summaries/benton-quota-planner.json` " \
+           "(no re-planning)" in error
     assert not (root / "docs").exists()
 
 
