@@ -21,7 +21,7 @@ from pathlib import Path
 
 from crop_sim_ros.usage import UsageError, user_input
 
-from .learning.summary import SUMMARY_FORMAT
+from .learning.summary import SUMMARY_FORMAT, check_planner_summary
 
 CONFIG = Path("results/leaderboard.yaml")
 CONFIG_MAX_BYTES = 1 << 20  # 15 times today's
@@ -29,6 +29,8 @@ SUMMARIES = Path("results/summaries")
 PAGE = Path("docs/leaderboard.md")
 README = Path("README.md")
 START, END = "<!-- leaderboard:start -->", "<!-- leaderboard:end -->"
+OLD_RULE = "budget-rule"  # the project's water-budget rule: a labelled weaker baseline where the paced rule is stronger
+HEADROOM_WORTH_LEARNING_PCT = 2.0  # issue 33: a set where a rule leaves less to a causal controller is not
 README_ROWS_MAX = 25  # the front page's excerpt stays short; the page holds the rest
 NAME_PATTERN = r"^[a-z0-9][a-z0-9._-]*$"  # a task or summary name: a file name, never a path
 
@@ -73,6 +75,7 @@ def _models():
         headline: Evaluation
         variants: list[Evaluation] = []
         readme_sets: list[str] = []
+        planner: str | None = Field(default=None, pattern=NAME_PATTERN)  # the causal planner's summary
 
     class Leaderboard(BaseModel):
         model_config = ConfigDict(extra="forbid")
@@ -110,7 +113,7 @@ def read_summaries(root: Path, config) -> dict[str, dict]:
     every file in results/summaries is named, a summary's task and agent groups (with their training seeds)
     are its entry's, and its sets were scored against the oracle (UsageError otherwise)."""
     named = [(task, evaluation) for task in config.tasks for evaluation in (task.headline, *task.variants)]
-    names = [evaluation.summary for _, evaluation in named]
+    names = [evaluation.summary for _, evaluation in named] + [task.planner for task in config.tasks if task.planner]
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
         raise UsageError(f"{CONFIG}: summary {repeated[0]!r} is named more than once")
@@ -119,8 +122,8 @@ def read_summaries(root: Path, config) -> dict[str, dict]:
         raise UsageError(f"{CONFIG}: task {next(t for t in tasks if tasks.count(t) > 1)!r} is listed more than once")
     unlisted = sorted(path.stem for path in (root / SUMMARIES).glob("*.json") if path.stem not in names)
     if unlisted:
-        raise UsageError(f"{CONFIG}: {SUMMARIES / (unlisted[0] + '.json')} is in no task's headline or variants "
-                         "(every committed result has a row)")
+        raise UsageError(f"{CONFIG}: {SUMMARIES / (unlisted[0] + '.json')} is in no task's headline, variants "
+                         "or planner (every committed result has a row)")
     summaries = {}
     for task, evaluation in named:
         where = SUMMARIES / f"{evaluation.summary}.json"
@@ -140,6 +143,52 @@ def read_summaries(root: Path, config) -> dict[str, dict]:
         raise UsageError(f"{CONFIG}: readme_sets name {readme_rows} rows; the README's excerpt holds at most "
                          f"{README_ROWS_MAX}")
     return summaries
+
+
+def read_planners(root: Path, config, summaries: dict[str, dict]) -> dict[str, dict]:
+    """The causal planner's summary of each task that names one, by task (:func:`read_planner`)."""
+    return {task.task: read_planner(root, task, summaries[task.headline.summary]) for task in config.tasks
+            if task.planner}
+
+
+def read_planner(root: Path, task, headline: dict) -> dict:
+    """The causal planner's summary a task names (:func:`~crop_agent_ros.learning.summary.check_planner_summary`),
+    checked against its headline evaluation: each of its sets is a set of the headline with the same seasons,
+    noise seeds, terms, oracle return, strongest rule and rule regrets (a rule re-tuned since the planner's
+    summary was written makes it stale: UsageError saying how to refresh it)."""
+    where = SUMMARIES / f"{task.planner}.json"
+    with user_input(str(where), (OSError, UnicodeDecodeError, json.JSONDecodeError, ValueError)):
+        planner = check_planner_summary(json.loads((root / where).read_text(encoding="utf-8")))
+    if planner["task"] != task.task:
+        raise UsageError(f"{where}: the planner of {planner['task']!r}, listed under task {task.task!r}")
+    sets = {s["name"]: s for s in headline["sets"]}
+    for planned in planner["sets"]:
+        evaluated = sets.get(planned["name"])
+        if evaluated is None:
+            raise UsageError(f"{where}: set {planned['name']} is not a set of {task.headline.summary}")
+        _check_planned_set(planned, evaluated, where, task.headline.summary)
+    return planner
+
+
+RULE_REGRET_MATCH_USD_HA = 0.15  # both summaries round to 0.1 USD/ha: the same figures differ by at most that
+
+
+def _check_planned_set(planned: dict, evaluated: dict, where: Path, headline: str) -> None:
+    same = [planned[key] == evaluated[key] for key in ("seasons", "noise_seeds", "terms_seed")]
+    rules = {row["policy"]: row["regret_usd_ha"] for row in evaluated["rows"] if row["kind"] == "rule"}
+    mine = {row["policy"]: row["regret_usd_ha"] for row in planned["rules"]}
+    if not all(same) or abs(planned["oracle_return_usd_ha"] - evaluated["oracle_return_usd_ha"]) > 0.15:
+        raise UsageError(f"{where}: set {planned['name']}: other seasons, terms or oracle than {headline}'s")
+    if (set(mine) != set(rules) or any(abs(mine[name] - rules[name]) > RULE_REGRET_MATCH_USD_HA for name in rules)
+            or planned["strongest_rule"] != reference_rule(evaluated)["policy"]):
+        raise UsageError(f"{where}: set {planned['name']}: its rule regrets ({_rule_regrets(mine)}) are not "
+                         f"{headline}'s ({_rule_regrets(rules)}): a rule changed since; re-run "
+                         f"`python -m experiments.planners_summary --table <a fresh evaluation's table.json> --runs "
+                         f"{where} --out {where}` (no re-planning)")
+
+
+def _rule_regrets(regrets: dict[str, float]) -> str:
+    return ", ".join(f"{name} {value:.1f}" for name, value in sorted(regrets.items()))
 
 
 def _check_summary(summary, task: str, evaluation, where: Path) -> None:
@@ -237,7 +286,7 @@ def _set_names(entries) -> list[str]:
     return names
 
 
-def _set_table(task_name: str, set_name: str, entries) -> list[str]:
+def _set_table(task_name: str, set_name: str, entries, limit: list[str] = ()) -> list[str]:
     headline_rows, variant_rows, described = [], [], None
     for role, evaluation, summary in entries:
         evaluation_set = next((s for s in summary["sets"] if s["name"] == set_name), None)
@@ -259,7 +308,7 @@ def _set_table(task_name: str, set_name: str, entries) -> list[str]:
     shapes = sorted({(s["seasons"], s["noise_seeds"]) for _, _, summary in entries for s in summary["sets"]
                      if s["name"] == set_name})
     shape = "; ".join(f"{seasons} seasons x {noise} noise seeds" for seasons, noise in shapes)
-    lines = [f"### {task_name}, {set_name}", "", f"{described['role']}; {shape}.", "",
+    lines = [f"### {task_name}, {set_name}", "", f"{described['role']}; {shape}.", "", *limit,
              "| evaluation | agent | oracle return | rule | rule regret [95 % CI] | regret [95 % CI] | regret % of "
              "oracle | ratio to rule [95 % CI] | paired wins | final / 1 % [95 % CI] | training per seed |",
              "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---|"]
@@ -267,6 +316,60 @@ def _set_table(task_name: str, set_name: str, entries) -> list[str]:
     for _, cells in headline_rows + sorted(variant_rows, key=lambda item: (item[0], item[1][0], item[1][1])):
         lines.append("| " + " | ".join(cells) + " |")
     return lines + [""]
+
+
+def _planned_set(planner: dict | None, set_name: str) -> dict | None:
+    return None if planner is None else next((s for s in planner["sets"] if s["name"] == set_name), None)
+
+
+def _planning_cost(planned: dict) -> str:
+    per_season = planned["planning_cpu_s"] / planned["seasons"]
+    return f"{_duration(planned['planning_cpu_s'])} CPU ({per_season:.0f} s CPU a season)"
+
+
+def headroom(planned: dict) -> str:
+    """The strongest rule's headroom over the causal planner: USD/ha and % of the oracle's return, with their
+    intervals, and whether it reaches the 2 % that makes a set worth learning (issue 33)."""
+    low, high = planned["headroom_ci_usd_ha"]
+    pct_low, pct_high = planned["headroom_pct_ci"]
+    reaches = "reaches" if planned["headroom_pct_of_oracle"] >= HEADROOM_WORTH_LEARNING_PCT else "under"
+    return (f"{_usd(planned['headroom_usd_ha'])} [{_usd(low)}, {_usd(high)}] USD/ha, "
+            f"{planned['headroom_pct_of_oracle']:.2f} % [{pct_low:.2f}, {pct_high:.2f}] of the oracle's return: "
+            f"{reaches} {HEADROOM_WORTH_LEARNING_PCT:.0f} %")
+
+
+def _limit_table(task, planned: dict, headline: dict) -> list[str]:
+    """A set's causal-limit table: the oracle, the causal planner, the rules (strongest first) and the headline's
+    agents, each with its regret and ratio to the strongest rule, then the rule's headroom over the planner."""
+    evaluated = next(s for s in headline["sets"] if s["name"] == planned["name"])
+    rows = {row["policy"]: row for row in evaluated["rows"]}
+    strongest = planned["strongest_rule"]
+    rules = sorted(planned["rules"], key=lambda rule: rule["policy"] != strongest)
+    name, oracle = task.headline.summary, planned["oracle_return_usd_ha"]
+    cells = [["oracle (knows the season's weather)", name, _usd(oracle), "0", "0.00 %", "-", "-"],
+             ["causal planner (knows the weather so far and its climate)", task.planner,
+              _usd(planned["planner"]["return_usd_ha"]), _regret(planned["planner"]),
+              f"{planned['planner']['regret_pct_of_reference']:.2f} %",
+              _ratio(planned["planner"]["ratio_to_strongest_rule"], planned["planner"]["ratio_to_strongest_rule_ci"]),
+              _planning_cost(planned)]]
+    for rule in rules:
+        label = ("strongest rule" if rule["policy"] == strongest
+                 else "old rule" if rule["policy"] == OLD_RULE else "weaker rule")
+        cells.append([f"{rule['policy']} ({label})", name, _usd(rows[rule["policy"]]["return_usd_ha"]), _regret(rule),
+                      f"{rows[rule['policy']]['regret_pct_of_reference']:.2f} %",
+                      _ratio(rule["ratio_to_strongest_rule"], rule["ratio_to_strongest_rule_ci"]), "-"])
+    for row in evaluated["rows"]:
+        if row["kind"] == "agent":
+            cells.append([f"{row['policy']} (agent)", name, _usd(row["return_usd_ha"]), _regret(row),
+                          f"{row['regret_pct_of_reference']:.2f} %", _ratio(row["ratio_to_rule"], row["ratio_to_rule_ci"]),
+                          training_cost(headline["training"][row["group"]]) + " per seed"])
+    borrowed = ("" if planned["planned_on"] == task.task else
+                f" Planned on `{planned['planned_on']}`'s evaluation: the same seasons, terms and oracle returns, the "
+                "same task constants and continuations (the planner reads the true state, not the observation).")
+    return ["| policy | summary | return | regret [95 % CI] | regret % of oracle | ratio to strongest rule "
+            "[95 % CI] | cost |", "|---|---|---:|---:|---:|---:|---|"] + ["| " + " | ".join(c) + " |" for c in cells] + [
+        "", f"Headroom ({strongest}'s regret - the causal planner's): {headroom(planned)}. The planner's "
+        f"continuations: `{planned['continuations']}`'s weather.{borrowed}", ""]
 
 
 def _commands(task_name: str, entries) -> list[str]:
@@ -280,8 +383,15 @@ def _commands(task_name: str, entries) -> list[str]:
     return lines + [""]
 
 
-def page(config, summaries: dict[str, dict]) -> str:
-    """The text of docs/leaderboard.md."""
+def _planner_commands(planner: dict) -> list[str]:
+    settings = ", ".join(f"{key} {value}" for key, value in planner["planner"].items())
+    lines = [f"Causal planner ({settings}), per set, then `python -m experiments.planners_summary` on the "
+             f"evaluation `{planner['evaluation']}`:", ""]
+    return lines + [f"- {s['name']} ({_planning_cost(s)}): `{s['command']}`" for s in planner["sets"]] + [""]
+
+
+def page(config, summaries: dict[str, dict], planners: dict[str, dict]) -> str:
+    """The text of docs/leaderboard.md (``planners``: :func:`read_planners`)."""
     agent_rows = sum(1 for s in summaries.values() for es in s["sets"] for row in es["rows"] if row["kind"] == "agent")
     lines = [
         "# Leaderboard", "",
@@ -296,7 +406,7 @@ def page(config, summaries: dict[str, dict]) -> str:
         f"Generated by `crop-sim leaderboard` from `{SUMMARIES}/*.json` (one per evaluation, listed in `{CONFIG}`); "
         "`crop-sim leaderboard --check` fails when this page is out of date. Do not edit it by hand.",
         "",
-        f"{len(config.tasks)} tasks, {len(summaries)} evaluations, {agent_rows} agent rows. Money in USD/ha. "
+        f"{len(config.tasks)} tasks, {len(summaries)} evaluations, {len(planners)} planner summaries, {agent_rows} agent rows. Money in USD/ha. "
         "Regret: the hindsight oracle's return (it plans knowing the season's weather) minus the policy's, per "
         "training seed, season and noise seed; [95 % CI]: hierarchical bootstrap over training seeds, seasons and "
         "noise seeds. Ratio to rule: agent regret / rule regret on the same resamples. Paired wins: the share of "
@@ -308,36 +418,54 @@ def page(config, summaries: dict[str, dict]) -> str:
         "training seed S; a headline ES command uses the task's recipe defaults, every other command is as its "
         "runs recorded it, with the `crop-sim train` options of that time (options removed since are in the git "
         "history).", "",
+        "**The causal limit** (issue 33), on the sets of the tasks whose entry names a planner summary: a table "
+        "before the agents' with the oracle, the causal planner, the rules and the headline's agents. The causal "
+        "planner (`experiments/planners_expected.py`, expected values over continuations of the set's own "
+        "climate) knows the crop's true state, the weather so far and the climate's weather generator, not the "
+        "season ahead: its regret is a measured upper bound on what a controller that cannot see the future "
+        "reaches (no noise: it reads no noisy value). Ratio to strongest rule: regret / the strongest rule's "
+        "regret on the same resamples. Headroom: the strongest rule's regret minus the planner's, in USD/ha and "
+        f"as % of the oracle's return; a set is worth learning where it reaches {HEADROOM_WORTH_LEARNING_PCT:.0f} "
+        "%. Cost: the planner's CPU seconds of planning on the set.", "",
     ]
     for task in config.tasks:
         entries = _entries(task, summaries)
         lines += [f"## {task.task}", "",
                   f"Headline: `{task.headline.summary}`; {len(entries) - 1} variants.", ""]
+        planner = planners.get(task.task)
         for set_name in _set_names(entries):
-            lines += _set_table(task.task, set_name, entries)
-        lines += _commands(task.task, entries)
+            planned = _planned_set(planner, set_name)
+            limit = [] if planned is None else _limit_table(task, planned, entries[0][2])
+            lines += _set_table(task.task, set_name, entries, limit)
+        lines += _commands(task.task, entries) + (_planner_commands(planner) if planner else [])
     return "\n".join(lines).rstrip("\n") + "\n"
 
 
-def readme_block(config, summaries: dict[str, dict]) -> str:
+def readme_block(config, summaries: dict[str, dict], planners: dict[str, dict]) -> str:
     """The README's excerpt: per task and set named in ``readme_sets``, the headline's best agent."""
     lines = [
         "Regret in USD/ha (the hindsight oracle's return minus the policy's) with 95 % bootstrap intervals; ratio: "
         "agent regret / the regret of the rule named (the set's strongest rule where the evaluation scored the paced "
-        "rule of issue 33, else our tuned water-budget rule): see the box at the top of "
+        "rule of issue 33, else our tuned water-budget rule); causal planner: the regret of a planner that knows "
+        "the weather so far and its climate, not the season ahead; headroom: the rule's regret minus the "
+        "planner's, as % of the oracle's return (a set is worth learning at 2 %): see the box at the top of "
         "[the leaderboard](docs/leaderboard.md), which has every result.",
         "",
-        "| task | set | rule | rule regret | best agent | agent regret [95 % CI] | ratio to rule [95 % CI] |",
-        "|---|---|---|---:|---|---:|---:|",
+        "| task | set | rule | rule regret | causal planner regret | headroom | best agent | agent regret [95 % CI] "
+        "| ratio to rule [95 % CI] |",
+        "|---|---|---|---:|---:|---:|---|---:|---:|",
     ]
     for task in config.tasks:
         summary = summaries[task.headline.summary]
         for set_name in task.readme_sets:
+            planned = _planned_set(planners.get(task.task), set_name)
+            limit = ("- | -" if planned is None else
+                     f"{_usd(planned['planner']['regret_usd_ha'])} | {planned['headroom_pct_of_oracle']:.2f} %")
             evaluation_set = next(s for s in summary["sets"] if s["name"] == set_name)
             rule = reference_rule(evaluation_set)
             best = min((row for row in evaluation_set["rows"] if row["kind"] == "agent"),
                        key=lambda row: (row["regret_usd_ha"], row["policy"]))
-            lines.append(f"| {task.task} | {set_name} | {rule['policy']} | {_usd(rule['regret_usd_ha'])} | "
+            lines.append(f"| {task.task} | {set_name} | {rule['policy']} | {_usd(rule['regret_usd_ha'])} | {limit} | "
                          f"{best['policy']} | "
                          f"{_regret(best)} | {_ratio(best['ratio_to_rule'], best['ratio_to_rule_ci'])} |")
     return "\n".join(lines) + "\n"
@@ -357,12 +485,13 @@ def outputs(root: Path) -> dict[Path, str]:
     """What the command writes, by path relative to ``root``: the page, and the README if it has markers."""
     config = read_config(root)
     summaries = read_summaries(root, config)
-    written = {PAGE: page(config, summaries)}
+    planners = read_planners(root, config, summaries)
+    written = {PAGE: page(config, summaries, planners)}
     readme_path = root / README
     if readme_path.is_file():
         with user_input(str(README), (OSError, UnicodeDecodeError)):
             readme = readme_path.read_text(encoding="utf-8")
-        updated = with_block(readme, readme_block(config, summaries))
+        updated = with_block(readme, readme_block(config, summaries, planners))
         if updated is not None:
             written[README] = updated
     return written

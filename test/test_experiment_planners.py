@@ -220,3 +220,34 @@ def test_hindsight_settings_and_planner_names_are_checked(quota_task):
     with pytest.raises(ValueError, match="programme_amounts must be >= 2"):
         fe.ExpectedSettings(programme_amounts=1)
     assert planners.planner_settings("mean-plan", 3, 5) == fm.MpcSettings(scenarios=3, decision_every_days=5)
+
+
+def test_the_planner_summary_command_refuses_bad_input_and_foreign_problems(tmp_path, capsys):
+    from experiments import planners_summary
+    from test_leaderboard import planned_table, planner_run
+    assert planners_summary.main(["--table", str(tmp_path / "missing.json"), "--runs", "x.json", "--out",
+                                  str(tmp_path / "s.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("planners_summary: ") and err.count("\n") == 1 and "missing.json" in err
+    table = planned_table()
+    table["arguments"] = {"far_seasons": 2, "far_seed": 900_001}
+    (tmp_path / "table.json").write_text(json.dumps(table))
+    for name, task, set_name in (("far", "benton-quota", "far-benton"), ("capacity", "benton-capacity", None),
+                                 ("sensing", "benton-sensing", None)):
+        run = planner_run(task=task)
+        run["set"] = set_name or run["set"]
+        (tmp_path / f"{name}.json").write_text(json.dumps(run))
+
+    def summarise(run: str) -> int:
+        return planners_summary.main(["--table", str(tmp_path / "table.json"), "--runs", str(tmp_path / run),
+                                      "--out", str(tmp_path / "summary.json")])
+    assert summarise("far.json") == 2
+    assert "planners_summary: --runs: set far-benton is not in the table" in capsys.readouterr().err
+    assert summarise("capacity.json") == 2  # 4.5 mm a day: another planning problem
+    assert "a run of benton-capacity, whose constants are not benton-quota's" in capsys.readouterr().err
+    assert not (tmp_path / "summary.json").exists()
+    # benton-sensing differs only in what the agents observe: its run is this set's, and the summary says so
+    assert summarise("sensing.json") == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["sets"][0]["planned_on"] == "benton-sensing" and summary["task"] == "benton-quota"
+    assert "heldout-real: planner 130" in capsys.readouterr().out

@@ -139,9 +139,9 @@ def small_config(task: str = "benton-quota") -> dict:
 
 
 def small_tree(root: Path, config: dict | None = None, readme: str | None = "# Farm\n\n"
-               f"{lb.START}\nold rows\n{lb.END}\n\nmore text\n") -> Path:
+               f"{lb.START}\nold rows\n{lb.END}\n\nmore text\n", table: dict | None = None) -> Path:
     (root / "results" / "summaries").mkdir(parents=True)
-    write_summary(root / "results" / "summaries" / "benton-quota-es.json", synthetic_table(), run_records())
+    write_summary(root / "results" / "summaries" / "benton-quota-es.json", table or synthetic_table(), run_records())
     (root / "results" / "leaderboard.yaml").write_text(yaml.safe_dump(config or small_config(), sort_keys=False))
     if readme is not None:
         (root / "README.md").write_text(readme)
@@ -166,7 +166,7 @@ def test_the_command_writes_the_page_and_the_readme_block_and_then_checks_clean(
     readme = (root / "README.md").read_text()
     assert readme.startswith(f"# Farm\n\n{lb.START}\n") and readme.endswith(f"{lb.END}\n\nmore text\n")
     assert "old rows" not in readme
-    assert "| benton-quota | heldout-real | budget-rule | 424 | es | 186 [103, 274] | 0.44 [0.23, 0.67] |" in readme
+    assert "| benton-quota | heldout-real | budget-rule | 424 | - | - | es | 186 [103, 274] | 0.44 [0.23, 0.67] |" in readme
 
 
 @pytest.mark.parametrize("tamper, named", [
@@ -252,7 +252,7 @@ def test_bad_yaml_and_unlisted_missing_or_oracle_less_summaries_are_refused_with
     root = small_tree(tmp_path / "unlisted")
     shutil.copy(root / "results" / "summaries" / "benton-quota-es.json", root / "results" / "summaries" / "extra.json")
     assert leaderboard(root) == 2
-    assert "results/summaries/extra.json is in no task's headline or variants" in capsys.readouterr().err
+    assert "results/summaries/extra.json is in no task's headline, variants or planner" in capsys.readouterr().err
 
     root = small_tree(tmp_path / "missing")
     (root / "results" / "summaries" / "benton-quota-es.json").unlink()
@@ -336,3 +336,164 @@ def test_the_summary_records_the_strongest_rule():
         row.pop("reference_rule")
     assert "strongest_rule" not in _set_summary({"name": "far-benton", "role": "far", "scenario": "benton-quota",
                                                  "seasons": [0], "terms_seed": 1, "reference": "oracle", "rows": rows})
+
+
+# --- the causal limit: a planner summary beside the headline -------------------------------------------------
+
+def planned_table(rule_regrets=(400.0, 447.0716133914)) -> dict:
+    """The synthetic table with the budget rule's returns per season and noise seed (regrets ``rule_regrets``
+    per season: by default the mean the table's rule row has, 423.54 USD/ha)."""
+    table = synthetic_table()
+    oracle = table["sets"][0]["oracle_returns_usd_ha"]
+    table["sets"][0]["returns_usd_ha"]["budget-rule"] = [[[o - r] * 3 for o, r in zip(oracle, rule_regrets)]]
+    return table
+
+
+def planner_run(regrets=(100.0, 160.0), task: str = "benton-quota") -> dict:
+    """A ``python -m experiments.planners --out`` file of the synthetic set: the planner's regret per season."""
+    oracle = synthetic_table()["sets"][0]["oracle_returns_usd_ha"]
+    return {"command": ["experiments/planners.py", "--table", "t.json", "--set", "heldout-real"], "task": task,
+            "set": "heldout-real", "settings": {"name": "family-expected", "scenarios": 4, "pool_generator": "benton"},
+            "decisions": 330, "planning_cpu_s": 61.0, "wall_s": 64.0,
+            "rows": [{"season": season, "oracle_usd_ha": o, "mpc_regret_usd_ha": r}
+                     for season, (o, r) in enumerate(zip(oracle, regrets))]}
+
+
+def planned_tree(root: Path, regrets=(100.0, 160.0), table: dict | None = None, headline: dict | None = None) -> Path:
+    from experiments.planners_summary import planner_summary
+    config = small_config()
+    config["tasks"][0]["planner"] = "benton-quota-planner"
+    root = small_tree(root, config, table=headline)
+    summary = planner_summary(table or planned_table(), [planner_run(regrets)])
+    (root / "results" / "summaries" / "benton-quota-planner.json").write_text(dumps(summary) + "\n")
+    return root
+
+
+def test_the_planner_summary_pairs_the_planner_with_the_rules_of_the_evaluation():
+    from experiments.planners_summary import planner_summary
+    summary = planner_summary(planned_table(), [planner_run()])
+    assert summary["kind"] == "causal-planner" and summary["task"] == "benton-quota"
+    assert summary["planner"] == {"name": "family-expected", "scenarios": 4}
+    (planned,) = summary["sets"]
+    (rule,) = planned["rules"]
+    # the rule regret is the evaluation summary's (the same returns and the protocol's resamples)
+    assert rule["regret_usd_ha"] == summary_rule(synthetic_table())["regret_usd_ha"] == 423.5
+    assert rule["ratio_to_strongest_rule"] == 1.0 and planned["strongest_rule"] == "budget-rule"
+    assert planned["planner"]["regret_usd_ha"] == 130.0 and planned["planner"]["return_usd_ha"] == 16030.3
+    assert planned["planner"]["ratio_to_strongest_rule"] == round(130 / 423.5358066957, 3)
+    assert planned["headroom_usd_ha"] == 293.5
+    assert planned["headroom_pct_of_oracle"] == round(100 * 293.5358066957 / 16160.3, 3)
+    low, high = planned["headroom_ci_usd_ha"]
+    assert low <= 293.5 <= high and low > 0  # every season: the planner below the rule
+    assert planned["planner"]["paired_wins"] == 1.0
+    assert planned["per_season_usd_ha"] == [[0, 18792.0, 100.0], [1, 13528.6, 160.0]]
+    assert planned["planning_cpu_s"] == 61.0
+
+
+def summary_rule(table: dict) -> dict:
+    return next(row for row in summary(table)["sets"][0]["rows"] if row["kind"] == "rule")
+
+
+def test_the_planner_summary_refuses_a_partial_or_foreign_run():
+    from experiments.planners_summary import planner_summary
+    partial = planner_run()
+    partial["rows"] = partial["rows"][:1]
+    with pytest.raises(ValueError, match="the run planned 1 of the set's 2 seasons"):
+        planner_summary(planned_table(), [partial])
+    other = planner_run()
+    other["rows"][0]["oracle_usd_ha"] += 1.0
+    with pytest.raises(ValueError, match="the run's oracle returns are not the table's"):
+        planner_summary(planned_table(), [other])
+    with pytest.raises(ValueError, match="two runs of set heldout-real"):
+        planner_summary(planned_table(), [planner_run(), planner_run()])
+
+
+def test_the_page_shows_the_causal_limit_of_each_planned_set(tmp_path, capsys):
+    root = planned_tree(tmp_path)
+    assert leaderboard(root) == 0 and leaderboard(root, "--check") == 0
+    page = (root / "docs" / "leaderboard.md").read_text()
+    limit = page[page.index("| policy | summary |"):page.index("| evaluation | agent |")]
+    lines = [line for line in limit.splitlines() if line.startswith("| ") and "---" not in line][1:]
+    assert [line.split(" | ")[0] for line in lines] == [
+        "| oracle (knows the season's weather)", "| causal planner (knows the weather so far and its climate)",
+        "| budget-rule (strongest rule)", "| es (agent)"]
+    assert lines[1].startswith("| causal planner (knows the weather so far and its climate) | benton-quota-planner "
+                               "| 16,030 | 130 [")
+    assert "| 0.80 % | 0.31 [" in lines[1] and lines[1].endswith("| 61 s CPU (30 s CPU a season) |")
+    assert lines[3].startswith("| es (agent) | benton-quota-es | 15,974 | 186 [103, 274] | 1.15 % | 0.44 [0.23, 0.67] |")
+    assert "Headroom (budget-rule's regret - the causal planner's): 294 [" in limit
+    assert "USD/ha, 1.82 % [" in limit and "of the oracle's return: under 2 %" in limit
+    readme = (root / "README.md").read_text()
+    assert "| benton-quota | heldout-real | budget-rule | 424 | 130 | 1.82 % | es | 186 [103, 274] |" in readme
+
+
+def test_a_headroom_of_two_percent_or_more_is_marked_as_worth_learning(tmp_path):
+    root = planned_tree(tmp_path, regrets=(10.0, 30.0))
+    assert leaderboard(root) == 0
+    assert "USD/ha, 2.50 % [" in (root / "docs" / "leaderboard.md").read_text()
+    assert "of the oracle's return: reaches 2 %" in (root / "docs" / "leaderboard.md").read_text()
+
+
+def test_a_planner_summary_against_other_rule_regrets_is_refused_as_stale(tmp_path, capsys):
+    root = planned_tree(tmp_path, table=planned_table(rule_regrets=(300.0, 347.0)))  # a rule re-tuned since
+    assert leaderboard(root) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and error.startswith(
+        "crop-sim leaderboard: results/summaries/benton-quota-planner.json: set heldout-real: its rule regrets "
+        "(budget-rule 323.5) are not benton-quota-es's (budget-rule 423.5): a rule changed since; re-run")
+    assert "--runs results/summaries/benton-quota-planner.json --out results/summaries/benton-quota-planner.json` " \
+           "(no re-planning)" in error
+    assert not (root / "docs").exists()
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda s: s.update(kind="evaluation"), "not a planner summary (kind: String should match pattern"),
+    (lambda s: s["sets"][0].pop("headroom_usd_ha"), "not a planner summary (sets.0.headroom_usd_ha: Field required)"),
+    (lambda s: s["sets"][0].update(per_season_usd_ha=[[0, 1.0, 1.0]]), "set heldout-real: 2 seasons, 1 rows per season"),
+    (lambda s: s.update(task="climates-quota"), "the planner of 'climates-quota', listed under task 'benton-quota'"),
+    (lambda s: s["sets"][0].update(name="far-benton"), "set far-benton is not a set of benton-quota-es"),
+])
+def test_a_malformed_planner_summary_is_refused_with_one_line(tmp_path, capsys, change, message):
+    root = planned_tree(tmp_path)
+    path = root / "results" / "summaries" / "benton-quota-planner.json"
+    summary = json.loads(path.read_text())
+    change(summary)
+    path.write_text(dumps(summary))
+    assert leaderboard(root) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("crop-sim leaderboard: results/summaries/benton-quota-planner.json: ")
+    assert error.count("\n") == 1 and message in error
+
+
+def test_the_strongest_rule_comes_first_and_the_budget_rule_is_labelled_the_old_rule(tmp_path):
+    table = planned_table()
+    evaluated = table["sets"][0]
+    evaluated["returns_usd_ha"]["paced-rule"] = [[[o - r] * 3 for o, r in zip(evaluated["oracle_returns_usd_ha"],
+                                                                              (150.0, 170.0))]]
+    evaluated["rows"].insert(2, _row("paced-rule", "rule", ret=16000.3, regret=160.0, ci=(150.0, 170.0), pct=0.99))
+    for row in evaluated["rows"]:
+        row["reference_rule"] = "paced-rule"
+    root = planned_tree(tmp_path, table=table, headline=table)
+    assert leaderboard(root) == 0
+    page = (root / "docs" / "leaderboard.md").read_text()
+    rules = [line for line in page.splitlines() if line.startswith(("| paced-rule (", "| budget-rule ("))]
+    assert rules[0].startswith("| paced-rule (strongest rule) | benton-quota-es | 16,000 | 160 [150, 170] | 0.99 % "
+                               "| 1.00 [1.00, 1.00] |")
+    assert rules[1].startswith("| budget-rule (old rule) | benton-quota-es | 15,737 | 424 [400, 447] | 2.62 % | 2.65 [")
+    assert "Headroom (paced-rule's regret - the causal planner's): 30 [" in page
+
+
+def test_a_stale_planner_summary_is_paired_again_with_the_new_rule_without_re_planning(tmp_path, capsys):
+    from experiments import planners_summary
+    root = planned_tree(tmp_path, table=planned_table(rule_regrets=(300.0, 347.0)))
+    assert leaderboard(root) == 2  # stale: the rule changed since
+    path = root / "results" / "summaries" / "benton-quota-planner.json"
+    stale = json.loads(path.read_text())
+    (tmp_path / "table.json").write_text(json.dumps(planned_table()))  # the evaluation with today's rule
+    assert planners_summary.main(["--table", str(tmp_path / "table.json"), "--runs", str(path), "--out", str(path)]) == 0
+    fresh = json.loads(path.read_text())
+    assert fresh["sets"][0]["planner"]["regret_usd_ha"] == stale["sets"][0]["planner"]["regret_usd_ha"] == 130.0
+    assert fresh["sets"][0]["per_season_usd_ha"] == stale["sets"][0]["per_season_usd_ha"]
+    assert fresh["sets"][0]["command"] == stale["sets"][0]["command"]
+    assert fresh["sets"][0]["headroom_usd_ha"] == 293.5 != stale["sets"][0]["headroom_usd_ha"]
+    assert leaderboard(root) == 0

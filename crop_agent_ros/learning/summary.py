@@ -208,3 +208,91 @@ def write_summary(path: Path, table: dict, run_summaries: Mapping[str, dict] | N
     """Write :func:`summary` of ``table`` to ``path``."""
     from crop_sim_ros.output import write_text_atomic
     write_text_atomic(path, dumps(summary(table, run_summaries)) + "\n")
+
+
+# --- the causal planner's summary (experiments/planners_summary.py writes it; the leaderboard reads it) -------
+
+PLANNER_KIND = "causal-planner"  # a planner summary's ``kind``; an evaluation summary has none
+
+
+def _planner_models():
+    """The planner summary's pydantic models (built on first use: importing this module needs no pydantic)."""
+    from pydantic import BaseModel, ConfigDict, Field
+
+    class Strict(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+
+    Interval = list[float]  # [low, high] of a 95 % bootstrap interval
+
+    class RatioToStrongest(Strict):
+        ratio_to_strongest_rule: float | None
+        ratio_to_strongest_rule_ci: Interval | None = Field(min_length=2, max_length=2)
+
+    class PlannerRow(RatioToStrongest):
+        return_usd_ha: float
+        regret_usd_ha: float
+        regret_ci_usd_ha: Interval = Field(min_length=2, max_length=2)
+        regret_pct_of_reference: float
+        paired_wins: float = Field(ge=0, le=1)
+
+    class RuleRow(RatioToStrongest):
+        policy: str = Field(min_length=1)
+        regret_usd_ha: float
+        regret_ci_usd_ha: Interval = Field(min_length=2, max_length=2)
+
+    class PlannerSet(Strict):
+        name: str = Field(min_length=1)
+        role: str
+        seasons: int = Field(ge=1)
+        noise_seeds: int = Field(ge=1)
+        terms_seed: int
+        oracle_return_usd_ha: float
+        strongest_rule: str = Field(min_length=1)
+        planner: PlannerRow
+        rules: list[RuleRow] = Field(min_length=1)
+        headroom_usd_ha: float
+        headroom_ci_usd_ha: Interval = Field(min_length=2, max_length=2)
+        headroom_pct_of_oracle: float
+        headroom_pct_ci: Interval = Field(min_length=2, max_length=2)
+        per_season_usd_ha: list[tuple[int, float, float]] = Field(min_length=1)  # season, oracle return, planner regret
+        continuations: str = Field(min_length=1)
+        planned_on: str = Field(min_length=1)
+        planning_cpu_s: float = Field(ge=0)
+        wall_s: float = Field(ge=0)
+        decisions: int = Field(ge=0)
+        command: str = Field(min_length=1)
+
+    class PlannerSummary(Strict):
+        format: int = Field(ge=SUMMARY_FORMAT, le=SUMMARY_FORMAT)
+        kind: str = Field(pattern=f"^{PLANNER_KIND}$")
+        task: str = Field(min_length=1)
+        planner: dict
+        evaluation: str = Field(min_length=1)
+        rules: dict[str, str]
+        bootstrap: dict[str, int]
+        sets: list[PlannerSet] = Field(min_length=1)
+
+    return PlannerSummary
+
+
+def check_planner_summary(value) -> dict:
+    """``value`` if it is a planner summary (:data:`PLANNER_KIND`): the schema, one row per season, the
+    strongest rule among the rules, distinct sets; else ValueError with one line."""
+    from pydantic import ValidationError
+    model = _planner_models()
+    try:
+        model.model_validate(value)
+    except ValidationError as error:
+        first = error.errors()[0]
+        place = ".".join(str(part) for part in first["loc"]) or "(top)"
+        raise ValueError(f"not a planner summary ({place}: {first['msg']})") from None
+    names = [s["name"] for s in value["sets"]]
+    for evaluation_set in value["sets"]:
+        rules = [row["policy"] for row in evaluation_set["rules"]]
+        if evaluation_set["strongest_rule"] not in rules or names.count(evaluation_set["name"]) > 1:
+            raise ValueError(f"set {evaluation_set['name']}: its strongest rule is none of its rules, or "
+                             "the set is listed twice")
+        if len(evaluation_set["per_season_usd_ha"]) != evaluation_set["seasons"]:
+            raise ValueError(f"set {evaluation_set['name']}: {evaluation_set['seasons']} seasons, "
+                             f"{len(evaluation_set['per_season_usd_ha'])} rows per season")
+    return value
