@@ -59,8 +59,11 @@ PACED_SEARCH_BOX = {
     "heat_weight": (0.0, 1.0),
     "senescence_weight": (0.0, 2.0),
     "skip_rain_mm": (0.0, 30.0),
+    "rate_prior_mm_per_degc_d": (0.15, 0.6),
+    "prior_weight_degc_d": (0.0, 3000.0),
+    "memory_degc_d": (50.0, 1500.0),
 }
-PACED_NEVER = {"skip_rain_mm": 1e6, "pace": 1e6}
+PACED_NEVER = {"skip_rain_mm": 1e6, "pace": 1e6, "memory_degc_d": 1e6}
 
 
 @dataclass(frozen=True)
@@ -78,6 +81,7 @@ class RuleFamily:
     box: dict
     never: dict
     suffix: str
+    shrink: float = 0.5  # the local search's step scale is multiplied by this each round
 
 
 RULES = {
@@ -88,7 +92,7 @@ RULES = {
         SEARCH_BOX, NEVER, ""),
     "paced-rule": RuleFamily(
         "paced-rule", PacedFacts.of_scenario, PacedFacts.record, PacedFacts.from_record, PacedRule,
-        PacedParameters.names(), PacedParameters(), PACED_SEARCH_BOX, PACED_NEVER, "-paced"),
+        PacedParameters.names(), PacedParameters(), PACED_SEARCH_BOX, PACED_NEVER, "-paced", shrink=0.7),
 }
 
 
@@ -192,7 +196,7 @@ def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 19
         log(f"round {round_}: best mean return {scores_all[order[0]]:.4f} of {len(scores_all)} candidates")
         if round_ < rounds:
             pool = _perturb(rng, best, candidates, scale, family.box, family.never)
-            scale /= 2.0
+            scale *= family.shrink
     return {**({} if rule == "budget-rule" else {"rule": rule}), "parameters": best[0], "mean_return": history[-1],
             "history": history, "seasons": [int(s) for s in unique_seasons], "seed": seed,
             **({"term_draws": term_draws} if term_draws > 1 else {}), "scenario": scenario.name,
