@@ -312,3 +312,22 @@ def test_a_higher_recent_rate_paces_a_tight_quota_harder(scenario):
         rule = PacedRule(facts, {**window, "memory_degc_d": memory})
         amounts[memory] = [float(rule.act(obs)[0]) for obs in days][-1]
     assert amounts[60.0] < amounts[1e9]
+
+
+def test_bank_stores_water_only_where_recent_et0_nears_the_pump_s_capacity(scenario):
+    """``bank_days`` x max(0, recent ET0 - ``bank_threshold`` x capacity) is added to the window's level: with
+    6 mm of ET0 a day on an 8 mm/d pivot, a threshold of half the capacity banks (more water today), one of the
+    whole capacity does not (the same water as without a bank)."""
+    facts = PacedFacts.of_scenario(scenario)
+    days = _season([6.0] * 60, [15.0] * 60)
+    for obs in days:
+        obs[:, PAW] = 60.0
+    window = {"start_offset_degc_d": -500.0, "narrow_degc_d": 0.0, "prior_weight_degc_d": 0.0, "margin_mm": 0.0}
+
+    def today(bank: dict) -> float:
+        rule = PacedRule(facts, {**window, **bank})
+        return [float(rule.act(obs)[0]) for obs in days][-1]
+
+    none = today({"bank_days": 0.0})
+    assert today({"bank_days": 1.0, "bank_threshold": 1.0}) == none
+    assert today({"bank_days": 1.0, "bank_threshold": 0.5}) > none

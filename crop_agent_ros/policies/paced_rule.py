@@ -28,7 +28,12 @@ soil-water sensor's published error (the scenario's ``noise.paw_mm``). Each day 
    (``late_factor`` x rate x the integral of the cover over the late thermal time still ahead), so that the
    quota is paced to leave it.
 6. **Aims at a level**: in the window ``level_factor`` x min(1, ``pace`` x ratio) x ET0 / 0.096 + ``margin_mm``
-   (SIMPLE's crop is unstressed while PAW >= ET0 / 0.096); before the window ``early_factor`` x ET0 / 0.096;
+   + min(1, ``pace`` x ratio) x the bank (SIMPLE's crop is unstressed while PAW >= ET0 / 0.096). The bank is
+   water stored ahead of days the pump cannot keep up with: ``bank_days`` x max(0, recent ET0 -
+   ``bank_threshold`` x the pump's capacity), recent ET0 the mean of the recent days (weighed as the recent
+   rate of point 4). Storing costs nothing while it is used (SIMPLE's crop transpires at most ET0 however wet
+   the soil); where ET0 nears a pivot's 8 mm/d (Maricopa's late season, 8-9 mm/d) the soil must carry the
+   difference. Before the window ``early_factor`` x ET0 / 0.096;
    after it the late level of point 5 (x min(1, ``pace`` x ratio)). On a heat day (f_heat < 1 from today's
    TMAX) growth is already limited to f_heat, and water
    stress down to f_water = f_heat costs neither growth nor canopy life: the level falls by ``heat_weight`` x
@@ -58,12 +63,16 @@ rate_prior_mm_per_    mm/degC d  net ET rate assumed before the season says othe
 degc_d
 prior_weight_degc_d   degC d     the thermal time of evidence the prior counts as (0: no prior)
 memory_degc_d         degC d     thermal time over which past days' weight in the recent rate falls by e
+bank_days             d          days of the pump's shortfall stored in the soil (point 6; 0: none)
+bank_threshold        1          share of the pump's capacity above which recent ET0 counts as shortfall
 ===================== ========== ==================================================================
 
 The tuned parameters of each task live in ``family_<task>-paced.json`` beside this module, written by
 ``crop-sim tune-rule --task TASK --rule paced-rule`` (:mod:`crop_agent_ros.policies.family_tuning`) from
 generated training seasons only; the shipped benton-quota, benton-sensing and climates-quota files with
-``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds).
+``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds). The
+rule is tuned on its task's training climates only: on a held-out climate (Maricopa for the Benton tasks) its
+parameters are a transfer test.
 """
 
 from __future__ import annotations
@@ -157,6 +166,8 @@ class PacedParameters:
     rate_prior_mm_per_degc_d: float = 0.3
     prior_weight_degc_d: float = 100.0
     memory_degc_d: float = 400.0
+    bank_days: float = 0.0
+    bank_threshold: float = 0.6
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
@@ -194,10 +205,11 @@ class PacedRule(BasePolicy):
         self._memory = None  # per field: I50B estimate, fading sums of ET0, rain and dTT, yesterday's values
 
     def _start(self, n: int) -> dict:
-        # The sums of ET0, rain and dTT: row 0 over the season so far, row 1 fading (recent days).
+        # The sums of ET0, rain, dTT and days: row 0 over the season so far, row 1 fading (recent days).
         return {"i50b": np.full(n, self.facts.i50b_degc_d), "et0_sum": np.zeros((2, n)), "rain_sum": np.zeros((2, n)),
                 "paw": np.full(n, self.facts.capacity_mm), "rain": np.zeros(n), "et0": np.ones(n),
-                "tmax": np.zeros(n), "tt_sum": np.zeros((2, n)), "tt": np.zeros(n)}
+                "tmax": np.zeros(n), "tt_sum": np.zeros((2, n)), "tt": np.zeros(n),
+                "day_sum": np.zeros((2, n))}
 
     def _remember(self, obs: np.ndarray) -> dict:
         """Update the per-field memory with yesterday's outcome (from today's observation) and return it."""
@@ -222,6 +234,7 @@ class PacedRule(BasePolicy):
         m["et0_sum"] = fade * m["et0_sum"] + m["et0"]
         m["rain_sum"] = fade * m["rain_sum"] + m["rain"]
         m["tt_sum"] = fade * m["tt_sum"] + (tt - m["tt"])
+        m["day_sum"] = fade * m["day_sum"] + 1.0
         m["tt"] = tt
         for key in m:
             m[key] = np.where(fresh, start[key], m[key])
@@ -272,7 +285,11 @@ class PacedRule(BasePolicy):
         in_window = (tt >= start) & (tt <= stop)
         cover = 1.0 / (1.0 + np.exp(np.clip(0.01 * (tt - senescence_tt), -50.0, 50.0)))
         late = np.where(tt < f.tsum_degc_d, p["late_factor"] * share * cover * heat_share * unstressed, 0.0)
-        level = np.where(in_window, p["level_factor"] * share * heat_share * unstressed + p["margin_mm"],
+        # The bank: days of the recent ET0 the pump cannot keep up with (point 6).
+        et0_recent = m["et0_sum"][1] / np.maximum(m["day_sum"][1], 1.0)
+        shortfall = np.maximum(et0_recent - p["bank_threshold"] * obs[:, _COL["capacity_mm_per_day"]], 0.0)
+        bank = p["bank_days"] * shortfall
+        level = np.where(in_window, p["level_factor"] * share * heat_share * unstressed + p["margin_mm"] + share * bank,
                          np.where(tt < start, p["early_factor"] * heat_share * unstressed, late))
         amount = np.maximum(np.minimum(level, f.capacity_mm) - paw - rain, 0.0)
         amount = np.where(obs[:, _COL["forecast_rain_mm"]] > p["skip_rain_mm"], 0.0, amount)
