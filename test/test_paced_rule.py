@@ -246,3 +246,88 @@ def test_tuner_meets_each_season_with_several_term_draws(scenario):
     assert result["seasons"] == [0, 1] and result["term_draws"] == 3
     assert "term_draws" not in family_tuning.tune_rule(scenario, np.arange(2), candidates=2, rounds=0,
                                                        rule="paced-rule", log=lambda message: None)
+
+
+def _season(et0_mm: list[float], dtt_degc_d: list[float], fields: int = 1) -> list[np.ndarray]:
+    """Synthetic observations (one (fields, 29) array a day): a season whose day d has ET0 ``et0_mm[d]`` and
+    thermal time ``dtt_degc_d[d]``, no rain, a read soil full at 100 mm, a large quota."""
+    days, tt = [], 0.0
+    for day, (et0, dtt) in enumerate(zip(et0_mm, dtt_degc_d)):
+        obs = np.zeros((fields, EXTENDED.size))
+        for name, value in {"days_since_sowing": day, "thermal_time_degc_d": tt, "et0_mm": et0, "tmax_degc": 20.0,
+                            "paw_mm": 100.0, "paw_observed": 1.0, "quota_remaining_mm": 400.0,
+                            "capacity_mm_per_day": 8.0}.items():
+            obs[:, EXTENDED.index(name)] = value
+        days.append(obs)
+        tt += dtt
+    return days
+
+
+def _rate_after(rule: PacedRule, days: list[np.ndarray]) -> np.ndarray:
+    rule.reset()
+    for obs in days:
+        rule.act(obs)
+    return rule.net_et_rate(rule._memory)
+
+
+def test_rate_follows_a_rising_season_and_keeps_the_season_s_when_it_falls(scenario):
+    """The rate is the larger of the season's and the recent one (``memory_degc_d``). 30 cool days (2 mm ET0 per
+    10 degC d) then 30 hot ones (8 mm per 20 degC d): with a short memory, the hot days' 0.4 mm per degC d; with
+    a memory longer than the season, the season's average so far, (60 + 240 - 8) / (300 + 600 - 20) (the last
+    day is counted tomorrow). Hot days then cool ones: the season's average, however short the memory."""
+    facts = PacedFacts.of_scenario(scenario)
+    rising = _season([2.0] * 30 + [8.0] * 30, [10.0] * 30 + [20.0] * 30)
+    season_average = (60.0 + 240.0 - 8.0) / (300.0 + 600.0 - 20.0)
+    recent = _rate_after(PacedRule(facts, {"memory_degc_d": 60.0, "prior_weight_degc_d": 0.0}), rising)
+    whole = _rate_after(PacedRule(facts, {"memory_degc_d": 1e9, "prior_weight_degc_d": 0.0}), rising)
+    assert recent[0] == pytest.approx(0.4, rel=0.02)
+    assert whole[0] == pytest.approx(season_average, rel=1e-6)
+    falling = _season([8.0] * 30 + [2.0] * 31, [20.0] * 30 + [10.0] * 31)
+    short = _rate_after(PacedRule(facts, {"memory_degc_d": 60.0, "prior_weight_degc_d": 0.0}), falling)
+    assert short[0] == pytest.approx((240.0 + 60.0) / (600.0 + 300.0), rel=1e-6)
+
+
+def test_rate_prior_counts_as_thermal_time_of_evidence(scenario):
+    """``prior_weight_degc_d`` W: the rate is (net ET seen + prior x W) / (thermal time seen + W): a large W keeps
+    the prior, and 290 degC d seen at 0.2 mm per degC d against W = 290 of a 0.6 prior give 0.4."""
+    facts = PacedFacts.of_scenario(scenario)
+    days = _season([2.0] * 30, [10.0] * 30)
+    prior = {"memory_degc_d": 1e9, "rate_prior_mm_per_degc_d": 0.6}
+    assert _rate_after(PacedRule(facts, {**prior, "prior_weight_degc_d": 1e9}), days)[0] == pytest.approx(0.6)
+    assert _rate_after(PacedRule(facts, {**prior, "prior_weight_degc_d": 290.0}), days)[0] == pytest.approx(0.4)
+
+
+def test_a_higher_recent_rate_paces_a_tight_quota_harder(scenario):
+    """The rate is the demand ahead: the same season state after hot recent days (short memory) sees more demand
+    than after the whole season's average (long memory), so under a tight quota it aims lower and irrigates less."""
+    facts = PacedFacts.of_scenario(scenario)
+    days = _season([2.0] * 40 + [8.0] * 20, [10.0] * 40 + [20.0] * 20)
+    for obs in days:
+        obs[:, PAW] = 30.0
+        obs[:, QUOTA] = 150.0
+    window = {"start_offset_degc_d": -500.0, "narrow_degc_d": 0.0, "narrow_stop_degc_d": 0.0, "pace": 1.0,
+              "prior_weight_degc_d": 0.0, "margin_mm": 0.0}
+    amounts = {}
+    for memory in (60.0, 1e9):
+        rule = PacedRule(facts, {**window, "memory_degc_d": memory})
+        amounts[memory] = [float(rule.act(obs)[0]) for obs in days][-1]
+    assert amounts[60.0] < amounts[1e9]
+
+
+def test_bank_stores_water_only_where_recent_et0_nears_the_pump_s_capacity(scenario):
+    """``bank_days`` x max(0, recent ET0 - ``bank_threshold`` x capacity) is added to the window's level: with
+    6 mm of ET0 a day on an 8 mm/d pivot, a threshold of half the capacity banks (more water today), one of the
+    whole capacity does not (the same water as without a bank)."""
+    facts = PacedFacts.of_scenario(scenario)
+    days = _season([6.0] * 60, [15.0] * 60)
+    for obs in days:
+        obs[:, PAW] = 60.0
+    window = {"start_offset_degc_d": -500.0, "narrow_degc_d": 0.0, "prior_weight_degc_d": 0.0, "margin_mm": 0.0}
+
+    def today(bank: dict) -> float:
+        rule = PacedRule(facts, {**window, **bank})
+        return [float(rule.act(obs)[0]) for obs in days][-1]
+
+    none = today({"bank_days": 0.0})
+    assert today({"bank_days": 1.0, "bank_threshold": 1.0}) == none
+    assert today({"bank_days": 1.0, "bank_threshold": 0.5}) > none

@@ -9,10 +9,10 @@ Two rule families are tuned the same way (:data:`RULES`): the water-budget rule 
 to ``family_<task>-paced.json``).
 
 Method: a random search over the rule's parameter box, then rounds of local search around the best few
-(Gaussian steps shrinking by half each round). Every candidate x season is one field of one batched
-environment run; every candidate meets the same seasons, the same drawn terms (prices, quota) and the same
-noise seed (common random numbers), so their differences are the rule's, not the draw's. The score is the
-mean return over the seasons.
+(Gaussian steps shrinking by half each round; the paced rule's, 17 parameters, by 0.7, so that its last rounds
+still move). Every candidate x season is one field of one batched environment run; every candidate meets the
+same seasons, the same drawn terms (prices, quota) and the same noise seed (common random numbers), so their
+differences are the rule's, not the draw's. The score is the mean return over the seasons.
 """
 
 from __future__ import annotations
@@ -59,8 +59,13 @@ PACED_SEARCH_BOX = {
     "heat_weight": (0.0, 1.0),
     "senescence_weight": (0.0, 2.0),
     "skip_rain_mm": (0.0, 30.0),
+    "rate_prior_mm_per_degc_d": (0.15, 0.6),
+    "prior_weight_degc_d": (0.0, 3000.0),
+    "memory_degc_d": (50.0, 1500.0),
+    "bank_days": (0.0, 20.0),
+    "bank_threshold": (0.3, 1.2),
 }
-PACED_NEVER = {"skip_rain_mm": 1e6, "pace": 1e6}
+PACED_NEVER = {"skip_rain_mm": 1e6, "pace": 1e6, "memory_degc_d": 1e6}
 
 
 @dataclass(frozen=True)
@@ -78,6 +83,7 @@ class RuleFamily:
     box: dict
     never: dict
     suffix: str
+    shrink: float = 0.5  # the local search's step scale is multiplied by this each round
 
 
 RULES = {
@@ -88,7 +94,7 @@ RULES = {
         SEARCH_BOX, NEVER, ""),
     "paced-rule": RuleFamily(
         "paced-rule", PacedFacts.of_scenario, PacedFacts.record, PacedFacts.from_record, PacedRule,
-        PacedParameters.names(), PacedParameters(), PACED_SEARCH_BOX, PACED_NEVER, "-paced"),
+        PacedParameters.names(), PacedParameters(), PACED_SEARCH_BOX, PACED_NEVER, "-paced", shrink=0.7),
 }
 
 
@@ -192,7 +198,7 @@ def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 19
         log(f"round {round_}: best mean return {scores_all[order[0]]:.4f} of {len(scores_all)} candidates")
         if round_ < rounds:
             pool = _perturb(rng, best, candidates, scale, family.box, family.never)
-            scale /= 2.0
+            scale *= family.shrink
     return {**({} if rule == "budget-rule" else {"rule": rule}), "parameters": best[0], "mean_return": history[-1],
             "history": history, "seasons": [int(s) for s in unique_seasons], "seed": seed,
             **({"term_draws": term_draws} if term_draws > 1 else {}), "scenario": scenario.name,

@@ -12,9 +12,15 @@ soil-water sensor's published error (the scenario's ``noise.paw_mm``). Each day 
 3. **Places a window of thermal time around the full canopy**: from I50A + ``start_offset_degc_d`` to
    Tsum - I50B(estimate) + ``stop_offset_degc_d``. The start moves later by ``narrow_degc_d`` x (1 - tightness)
    and the stop earlier by ``narrow_stop_degc_d`` x (1 - tightness), tightness = min(1, supply / demand over the wide window): a tight quota is spent where a mm buys most growth.
-4. **Paces the quota by the demand still ahead**: demand = net ET per unit of thermal time so far
-   (sum(ET0 - rain) / TT, at least a quarter of sum(ET0) / TT) x the thermal time left in the window; supply =
-   quota left + the estimated soil water; ratio = supply / demand.
+4. **Paces the quota by the demand still ahead**: demand = the net ET rate x the thermal time left in the
+   window; supply = quota left + the estimated soil water; ratio = supply / demand. The rate (mm per degC d) is
+   the larger of two estimates, each sum(ET0 - rain) / sum(dTT) (net ET at least a quarter of ET0) shrunk
+   towards ``rate_prior_mm_per_degc_d`` as if ``prior_weight_degc_d`` degC d of it had been seen: over the
+   season so far, and over recent days (each day weighed by exp(-(TT now - TT then) / ``memory_degc_d``)).
+   Why the larger: a rate that rises through the season (a cool start, e.g. Maricopa sown in January: net ET
+   about 0.2 mm per degC d in the first 300 degC d, 0.35-0.44 after; Benton 0.27-0.33 throughout) is what the
+   demand ahead follows, and too low a rate spends a tight quota early; why a prior: in the first weeks the few
+   days seen say little.
 5. **Reserves water for the late canopy**: after the window (until maturity) the crop still grows in
    proportion to its canopy cover, and late stress brings harvest forward. The rule aims there at
    ``late_factor`` x the estimated canopy cover x ET0 / 0.096 (cover from SIMPLE's senescence curve at the
@@ -22,7 +28,12 @@ soil-water sensor's published error (the scenario's ``noise.paw_mm``). Each day 
    (``late_factor`` x rate x the integral of the cover over the late thermal time still ahead), so that the
    quota is paced to leave it.
 6. **Aims at a level**: in the window ``level_factor`` x min(1, ``pace`` x ratio) x ET0 / 0.096 + ``margin_mm``
-   (SIMPLE's crop is unstressed while PAW >= ET0 / 0.096); before the window ``early_factor`` x ET0 / 0.096;
+   + min(1, ``pace`` x ratio) x the bank (SIMPLE's crop is unstressed while PAW >= ET0 / 0.096). The bank is
+   water stored ahead of days the pump cannot keep up with: ``bank_days`` x max(0, recent ET0 -
+   ``bank_threshold`` x the pump's capacity), recent ET0 the mean of the recent days (weighed as the recent
+   rate of point 4). Storing costs nothing while it is used (SIMPLE's crop transpires at most ET0 however wet
+   the soil); where ET0 nears a pivot's 8 mm/d (Maricopa's late season, 8-9 mm/d) the soil must carry the
+   difference. Before the window ``early_factor`` x ET0 / 0.096;
    after it the late level of point 5 (x min(1, ``pace`` x ratio)). On a heat day (f_heat < 1 from today's
    TMAX) growth is already limited to f_heat, and water
    stress down to f_water = f_heat costs neither growth nor canopy life: the level falls by ``heat_weight`` x
@@ -48,12 +59,20 @@ late_factor           1          share of the no-stress level x canopy cover kep
 heat_weight           1          share of a heat day's free water stress taken (0: none, 1: all)
 senescence_weight     1          weight of the estimated I50B increments (0: stress ignored)
 skip_rain_mm          mm         no irrigation when tomorrow's forecast rain exceeds it
+rate_prior_mm_per_    mm/degC d  net ET rate assumed before the season says otherwise (point 4)
+degc_d
+prior_weight_degc_d   degC d     the thermal time of evidence the prior counts as (0: no prior)
+memory_degc_d         degC d     thermal time over which past days' weight in the recent rate falls by e
+bank_days             d          days of the pump's shortfall stored in the soil (point 6; 0: none)
+bank_threshold        1          share of the pump's capacity above which recent ET0 counts as shortfall
 ===================== ========== ==================================================================
 
 The tuned parameters of each task live in ``family_<task>-paced.json`` beside this module, written by
 ``crop-sim tune-rule --task TASK --rule paced-rule`` (:mod:`crop_agent_ros.policies.family_tuning`) from
 generated training seasons only; the shipped benton-quota, benton-sensing and climates-quota files with
-``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds).
+``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds). The
+rule is tuned on its task's training climates only: on a held-out climate (Maricopa for the Benton tasks) its
+parameters are a transfer test.
 """
 
 from __future__ import annotations
@@ -144,6 +163,11 @@ class PacedParameters:
     heat_weight: float = 1.0
     senescence_weight: float = 1.0
     skip_rain_mm: float = 10.0
+    rate_prior_mm_per_degc_d: float = 0.3
+    prior_weight_degc_d: float = 100.0
+    memory_degc_d: float = 400.0
+    bank_days: float = 0.0
+    bank_threshold: float = 0.6
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
@@ -178,12 +202,14 @@ class PacedRule(BasePolicy):
     def reset(self, seed: int | None = None) -> None:
         super().reset(seed)
         self.soil_water.reset()
-        self._memory = None  # per field: I50B estimate, sums of ET0, rain and thermal time, yesterday's values
+        self._memory = None  # per field: I50B estimate, fading sums of ET0, rain and dTT, yesterday's values
 
     def _start(self, n: int) -> dict:
-        return {"i50b": np.full(n, self.facts.i50b_degc_d), "et0_sum": np.zeros(n), "rain_sum": np.zeros(n),
+        # The sums of ET0, rain, dTT and days: row 0 over the season so far, row 1 fading (recent days).
+        return {"i50b": np.full(n, self.facts.i50b_degc_d), "et0_sum": np.zeros((2, n)), "rain_sum": np.zeros((2, n)),
                 "paw": np.full(n, self.facts.capacity_mm), "rain": np.zeros(n), "et0": np.ones(n),
-                "tmax": np.zeros(n)}
+                "tmax": np.zeros(n), "tt_sum": np.zeros((2, n)), "tt": np.zeros(n),
+                "day_sum": np.zeros((2, n))}
 
     def _remember(self, obs: np.ndarray) -> dict:
         """Update the per-field memory with yesterday's outcome (from today's observation) and return it."""
@@ -202,11 +228,26 @@ class PacedRule(BasePolicy):
         f_heat = heat_response(m["tmax"], f.heat_stress_onset_degc, f.extreme_heat_degc)
         step = np.maximum(f.i50_max_water_degc_d * (1.0 - f_water), f.i50_max_heat_degc_d * (1.0 - f_heat))
         m["i50b"] = m["i50b"] + self.parameters["senescence_weight"] * step
-        m["et0_sum"] = m["et0_sum"] + m["et0"]
-        m["rain_sum"] = m["rain_sum"] + m["rain"]
+        # Row 1 fades with thermal time (``memory_degc_d``: how far back the recent rate looks).
+        tt = obs[:, _COL["thermal_time_degc_d"]]
+        fade = np.stack([np.ones(n), np.exp(-np.maximum(tt - m["tt"], 0.0) / self.parameters["memory_degc_d"])])
+        m["et0_sum"] = fade * m["et0_sum"] + m["et0"]
+        m["rain_sum"] = fade * m["rain_sum"] + m["rain"]
+        m["tt_sum"] = fade * m["tt_sum"] + (tt - m["tt"])
+        m["day_sum"] = fade * m["day_sum"] + 1.0
+        m["tt"] = tt
         for key in m:
             m[key] = np.where(fresh, start[key], m[key])
         return m
+
+    def net_et_rate(self, memory: dict) -> np.ndarray:
+        """(N,) net ET per unit of thermal time (mm per degC d; module docstring, point 4) from the sums of
+        :meth:`_remember`: the larger of the season's and the recent rate, each shrunk towards the prior."""
+        p = self.parameters
+        net = np.maximum(memory["et0_sum"] - memory["rain_sum"], 0.25 * memory["et0_sum"])
+        weight = p["prior_weight_degc_d"]
+        rates = (net + p["rate_prior_mm_per_degc_d"] * weight) / np.maximum(memory["tt_sum"] + weight, MIN_RATE_TT_DEGC_D)
+        return rates.max(axis=0)
 
     def _act_batch(self, obs):
         p, f = self.parameters, self.facts
@@ -216,9 +257,7 @@ class PacedRule(BasePolicy):
         rain = obs[:, _COL["rain_mm"]]
         tt = obs[:, _COL["thermal_time_degc_d"]]
         quota = obs[:, _COL["quota_remaining_mm"]]
-        # Net ET per unit of thermal time so far (rain counted, but never below a quarter of ET0).
-        net = np.maximum(m["et0_sum"] - m["rain_sum"], 0.25 * m["et0_sum"])
-        rate = net / np.maximum(tt, MIN_RATE_TT_DEGC_D)
+        rate = self.net_et_rate(m)
         supply = quota + paw
 
         def demand(first, last):
@@ -246,7 +285,11 @@ class PacedRule(BasePolicy):
         in_window = (tt >= start) & (tt <= stop)
         cover = 1.0 / (1.0 + np.exp(np.clip(0.01 * (tt - senescence_tt), -50.0, 50.0)))
         late = np.where(tt < f.tsum_degc_d, p["late_factor"] * share * cover * heat_share * unstressed, 0.0)
-        level = np.where(in_window, p["level_factor"] * share * heat_share * unstressed + p["margin_mm"],
+        # The bank: days of the recent ET0 the pump cannot keep up with (point 6).
+        et0_recent = m["et0_sum"][1] / np.maximum(m["day_sum"][1], 1.0)
+        shortfall = np.maximum(et0_recent - p["bank_threshold"] * obs[:, _COL["capacity_mm_per_day"]], 0.0)
+        bank = p["bank_days"] * shortfall
+        level = np.where(in_window, p["level_factor"] * share * heat_share * unstressed + p["margin_mm"] + share * bank,
                          np.where(tt < start, p["early_factor"] * heat_share * unstressed, late))
         amount = np.maximum(np.minimum(level, f.capacity_mm) - paw - rain, 0.0)
         amount = np.where(obs[:, _COL["forecast_rain_mm"]] > p["skip_rain_mm"], 0.0, amount)
