@@ -30,19 +30,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _learners(task: str, overrides: dict):
     """(settings, scenario, actor, interface) of ``task``'s ES recipe with ``overrides``, a fresh network."""
-    from stable_baselines3 import PPO
     from crop_sim_ros.task import get_scenario
     from ..policies.learned import AgentInterface
     from . import hyperparameters as hp
-    from .agent import network_spaces
     from .evolution import ActorVector
-    from .train_task import fit_scaler
+    from .train_task import ES_CONTAINER_LOG_STD, actor_container, fit_scaler
 
     settings = hp.resolve(task, "es", True, overrides)
     scenario = get_scenario(task)
     interface = AgentInterface(fit_scaler(scenario, 0))
-    model = PPO("MlpPolicy", network_spaces(interface.input_size), seed=0, device="cpu",
-                policy_kwargs={"net_arch": list(settings.net_arch)})
+    model = actor_container(interface.input_size,
+                            {"net_arch": list(settings.net_arch), "log_std_init": ES_CONTAINER_LOG_STD}, seed=0)
     return settings, scenario, ActorVector(model.policy), interface
 
 

@@ -41,6 +41,15 @@ TRAINING_KINDS = ("generator", "mixture")
 ES_CONTAINER_LOG_STD = -2.5
 
 
+
+def actor_container(input_size: int, policy_kwargs: dict, seed: int):
+    """A fresh PPO policy that holds an ES or GRPO actor's network (PPO never learns; the learner sets its
+    weights), for an observation of ``input_size`` values."""
+    from stable_baselines3 import PPO
+    from .agent import network_spaces
+    return PPO("MlpPolicy", network_spaces(input_size), policy_kwargs=policy_kwargs, seed=seed, device="cpu",
+               verbose=0)
+
 def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
     """Observation statistics over ``seasons`` training seasons under the default water-budget rule."""
     from crop_sim_ros.task import IrrigationVectorEnv
@@ -167,10 +176,8 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
                     n_steps=settings.n_steps, batch_size=settings.batch_size, n_epochs=settings.n_epochs,
                     gamma=settings.gamma, gae_lambda=settings.gae_lambda, clip_range=settings.clip_range,
                     ent_coef=settings.ent_coef, policy_kwargs=policy_kwargs, seed=seed, device="cpu", verbose=0)
-    else:  # es, grpo: they run their own seasons; the PPO policy is the actor's container (PPO never learns)
-        from .agent import network_spaces
-        model = PPO("MlpPolicy", network_spaces(interface.input_size), policy_kwargs=policy_kwargs, seed=seed,
-                    device="cpu", verbose=0)
+    else:  # es, grpo: they run their own seasons
+        model = actor_container(interface.input_size, policy_kwargs, seed)
     model.set_logger(silent_logger())
     validation = validation_scenario(scenario, settings.validation_seasons, seed)
     seasons = np.arange(settings.validation_seasons)
