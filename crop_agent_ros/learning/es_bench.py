@@ -75,7 +75,8 @@ def _jax_generation(settings, scenario, actor, interface, echo):
 
     days = run_once()
     echo(f"  (JAX: built, compiled and run once in {time.perf_counter() - start:.1f} s; "
-         f"{jax.devices()[0].platform}, float64 environment, float32 network)")
+         f"{jax.devices()[0].platform}, candidates split over {learner.parts} devices, float64 environment, "
+         f"float32 network)")
     return run_once, days
 
 
