@@ -46,3 +46,27 @@ def test_the_es_benchmark_refuses_bad_input_in_one_line(argv, message):
     done = subprocess.run([str(Path(sys.executable).parent / "crop-sim"), "es-bench", *argv], capture_output=True,
                           text=True, timeout=300, cwd=REPO)
     assert done.returncode == 2 and done.stderr.strip().splitlines()[-1].startswith(message), done.stderr
+
+
+def _es_bench(*argv: str, timeout: int = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "crop_agent_ros.cli", "es-bench", *argv], capture_output=True,
+                          text=True, timeout=timeout, cwd=REPO)
+
+
+def test_the_whole_recipe_benchmark_trains_with_each_learner_in_turn():
+    """Tiny whole runs (2 pairs, 2 seasons, 6,000 field-days): a line per run with its wall and CPU seconds, then
+    the ratios."""
+    done = _es_bench("--whole-recipe", "--repeats", "1", "--pairs", "2", "--seasons", "2", "--timesteps", "6000",
+                     timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = done.stdout
+    for backend in ("numpy", "jax"):
+        assert re.search(rf"round 1, {backend} learner: [\d.]+ s wall, [\d.]+ s CPU \(CPUs busy", out), out
+    assert re.search(r"numpy / JAX time: [\d.]+x \(wall\), [\d.]+x \(CPU time\)", out), out
+
+
+def test_the_es_benchmark_refuses_timesteps_without_the_whole_recipe():
+    done = _es_bench("--timesteps", "6000")
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines()[-1] == (
+        "crop-sim es-bench: --timesteps: only with --whole-recipe (a generation's field-days are the recipe's)")

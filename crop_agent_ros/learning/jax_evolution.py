@@ -7,7 +7,9 @@ the numpy learner, setting for setting:
 
 - a generation draws ``seasons`` training seasons of the task's pool and their episode terms from the same
   numpy generator as :func:`~.evolution.evolve` (:func:`~.evolution.generation_seasons`: common random numbers,
-  every candidate runs the same seasons with the same terms; each field draws its own observation noise);
+  every candidate runs the same seasons with the same terms); the observation noise is common too: every
+  candidate sees season s with the same noise (the numpy learner draws it per field; see
+  :meth:`PopulationRollout._noise` for why);
 - ``pairs`` antithetic candidates theta +- ``noise_std`` x eps_i (evosax ``Open_ES``, antithetic sampling), each
   a deterministic network (the same architecture, observation scaling and action in mm as the loaded agent,
   :mod:`crop_agent_ros.policies.learned`; float32, as the exported network runs) acting on every field-day of
@@ -23,14 +25,18 @@ the numpy learner, setting for setting:
   ``hyper_parameters`` say ``backend: jax``.
 
 What differs from the numpy learner is the random streams (the parameter noise and the observation noise come
-from JAX keys of the seed), so a seed gives another run than ``backend: numpy``, the same run every time on one
-machine. No soil-water filter (``paw_filter``: refused by the recipe).
+from JAX keys of the seed) and the common observation noise, so a seed gives another run than ``backend: numpy``,
+the same run every time on one machine. No soil-water filter (``paw_filter``: refused by the recipe).
+
+On a CPU the population is split over one XLA device per CPU the process may use (:func:`use_host_cpus`,
+:func:`candidates_split`): each part's fields run on their own thread, with the same returns as on one device.
 
 This module imports jax, optax and evosax (``pip install crop_sim_ros[jax]``); nothing imports it unless asked.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 
@@ -38,7 +44,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optax
-from evosax.algorithms import Open_ES
 
 from crop_sim_ros.task import core
 from crop_sim_ros.task.jax_env import JaxIrrigationEnv
@@ -76,45 +81,50 @@ class PopulationRollout:
         outputs = actor_outputs(layers, scaled.reshape(candidates, -1, scaled.shape[-1]), xp=jnp)
         return ((jnp.clip(outputs, -1.0, 1.0) + 1.0) * 0.5 * ACTION_SCALE_MM).reshape(-1)
 
-    def _noise(self, key: jax.Array, fields: int) -> jax.Array:
-        """One day's observation noise of every field (zeros for a task without noise: nothing to draw)."""
-        shape = (fields, self.env.task.noise_columns)
-        return jax.random.normal(key, shape, jnp.float32) if self.env.task.noisy else jnp.zeros(shape, jnp.float32)
+    def _noise(self, key: jax.Array, candidates: int, seasons: int) -> jax.Array:
+        """One day's observation noise of every field, common to the candidates (zeros for a task without noise:
+        nothing to draw): one draw per season, candidate p's field of season s gets season s's. Why common: the
+        candidates then differ by their networks alone (common random numbers, as for the seasons and terms), and
+        the normal draws, per field, cost more on a CPU than the environment's day."""
+        shape = (seasons, self.env.task.noise_columns)
+        noise = jax.random.normal(key, shape, jnp.float32) if self.env.task.noisy else jnp.zeros(shape, jnp.float32)
+        return jnp.tile(noise, (candidates, 1))
 
     def __call__(self, thetas: jax.Array, seasons: jax.Array, terms: core.EpisodeTerms, key: jax.Array):
         """Season returns (P, S) (USD/ha) and days run (P, S) of candidate p on season s (pool indices
         ``seasons`` (S,), episode terms ``terms`` of (S,) arrays), the observation noise from ``key``."""
-        candidates = thetas.shape[0]
-        fields = candidates * seasons.shape[0]
+        candidates, count = thetas.shape[0], seasons.shape[0]
         layers = self.actor.unflatten(thetas.astype(NETWORK_DTYPE))
         field_terms = core.EpisodeTerms(*(jnp.tile(jnp.asarray(t), candidates) for t in terms))
         key, first = jax.random.split(key)
         obs, state = jax.vmap(self.env.reset_with, in_axes=(0, 0, 0, None))(
-            jnp.tile(seasons, candidates), field_terms, self._noise(first, fields), self.params)
+            jnp.tile(seasons, candidates), field_terms, self._noise(first, candidates, count), self.params)
         step = jax.vmap(self.env.step_with, in_axes=(0, 0, 0, None))
 
         def day(carry):
             key, obs, state, alive, total, days = carry
             key, sub = jax.random.split(key)
             obs, state, reward, terminated, truncated, _ = step(
-                state, self.irrigation_mm(layers, obs, candidates), self._noise(sub, fields), self.params)
+                state, self.irrigation_mm(layers, obs, candidates), self._noise(sub, candidates, count), self.params)
             total = total + jnp.where(alive, reward, 0.0)
             return key, obs, state, alive & ~(terminated | truncated), total, days + alive
 
+        fields = candidates * count
         start = (key, obs, state, jnp.ones(fields, bool), jnp.zeros(fields), jnp.zeros(fields, jnp.int32))
         *_, total, days = jax.lax.while_loop(lambda carry: carry[3].any(), day, start)
         return total.reshape(candidates, -1), days.reshape(candidates, -1)
 
 
-def open_es(settings, size: int) -> Open_ES:
+def open_es(settings, size: int):
     """evosax's OpenAI-ES of the recipe ``settings`` on ``size`` parameters: ``2 pairs`` candidates, antithetic,
     std ``noise_std``, centred ranks (its default fitness shaping), Adam whose step size :func:`tell` sets."""
+    from evosax.algorithms import Open_ES  # imported here: importing evosax starts JAX's backend (use_host_cpus)
     return Open_ES(population_size=2 * settings.pairs, solution=jnp.zeros(size), use_antithetic_sampling=True,
                    optimizer=optax.inject_hyperparams(optax.adam)(learning_rate=settings.learning_rate, **ADAM),
                    std_schedule=optax.constant_schedule(settings.noise_std))
 
 
-def tell(strategy: Open_ES, state, key: jax.Array, population: jax.Array, fitness: jax.Array, learning_rate):
+def tell(strategy, state, key: jax.Array, population: jax.Array, fitness: jax.Array, learning_rate):
     """``strategy``'s state after the candidates ``population`` (P, size) returned ``fitness`` (P,) (higher is
     better: evosax minimises, so it is told the negation), Adam's step size ``learning_rate``."""
     opt_state = state.opt_state
@@ -124,12 +134,39 @@ def tell(strategy: Open_ES, state, key: jax.Array, population: jax.Array, fitnes
     return _strongly_typed(state)
 
 
+def use_host_cpus() -> None:
+    """Ask XLA's CPU backend for one device per CPU this process may run on, so that :func:`candidates_split`
+    can run the population's parts side by side (XLA runs one device's program on one thread, and a field-day's
+    operations are too small to spread over threads). Only before JAX's first operation: afterwards the backend
+    keeps the devices it started with (then nothing changes)."""
+    try:
+        jax.config.update("jax_num_cpu_devices", len(os.sched_getaffinity(0)))
+    except RuntimeError:
+        pass
+
+
+def candidates_split(rollout: PopulationRollout, candidates: int):
+    """(``rollout`` with the candidates split evenly over the default backend's devices, the number of parts): as
+    many parts as divide ``candidates`` (``jax.shard_map``), each part's seasons run on its own device until its
+    own fields end. The same returns as on one device: a candidate's fields depend on its network and the common
+    draws only."""
+    devices = jax.devices()
+    parts = max(n for n in range(1, len(devices) + 1) if candidates % n == 0)
+    if parts == 1:
+        return rollout, 1
+    mesh = jax.sharding.Mesh(np.array(devices[:parts]), ("candidates",))
+    split, whole = jax.sharding.PartitionSpec("candidates"), jax.sharding.PartitionSpec()
+    return jax.shard_map(rollout, mesh=mesh, in_specs=(split, whole, whole, whole), out_specs=(split, split),
+                         check_vma=False), parts  # the per-part loops use no collectives
+
+
 class JaxEvolution:
     """The ES learner on JAX: evosax's ``Open_ES`` (:func:`open_es`) over a :class:`PopulationRollout`;
     :meth:`generation` is one jitted call."""
 
     def __init__(self, scenario, interface: AgentInterface, actor: ActorVector, settings):
-        self.rollout = PopulationRollout(scenario, interface, actor)
+        use_host_cpus()
+        self.rollout, self.parts = candidates_split(PopulationRollout(scenario, interface, actor), 2 * settings.pairs)
         self.strategy = open_es(settings, actor.size)
         self._generation = jax.jit(self._generation_of)
 
@@ -199,6 +236,7 @@ def evolve_jax(model, interface: AgentInterface, scenario, settings, seed: int, 
     loop_s = time.perf_counter() - started - clock["checkpoints_s"]
     print(f"JAX ES on {jax.devices()[0].platform}: {generation} generations, {steps:,} field-days in {loop_s:.1f} s "
           f"of ES ({clock['first_s']:.1f} s to the end of the first generation, compilation included; "
-          f"{steps / loop_s:,.0f} field-days/s), {clock['checkpoints_s']:.1f} s of checkpoints",
+          f"{steps / loop_s:,.0f} field-days/s, candidates split over {learner.parts} devices), "
+          f"{clock['checkpoints_s']:.1f} s of checkpoints",
           file=sys.stderr, flush=True)
     return steps
