@@ -15,7 +15,8 @@ soil-water sensor's published error (the scenario's ``noise.paw_mm``). Each day 
 4. **Paces the quota by the demand still ahead**: demand = the net ET rate x the thermal time left in the
    window; supply = quota left + the estimated soil water; ratio = supply / demand. The rate (mm per degC d) is
    the larger of two estimates, each sum(ET0 - rain) / sum(dTT) (net ET at least a quarter of ET0) shrunk
-   towards ``rate_prior_mm_per_degc_d`` as if ``prior_weight_degc_d`` degC d of it had been seen: over the
+   towards a prior rate, ``rate_prior_mm_per_degc_d`` + ``prior_et0_share`` x the ET0 per degC d seen (a share:
+   no climate's constant), as if ``prior_weight_degc_d`` degC d of it had been seen: over the
    season so far, and over recent days (each day weighed by exp(-(TT now - TT then) / ``memory_degc_d``)).
    Why the larger: a rate that rises through the season (a cool start, e.g. Maricopa sown in January: net ET
    about 0.2 mm per degC d in the first 300 degC d, 0.35-0.44 after; Benton 0.27-0.33 throughout) is what the
@@ -65,6 +66,8 @@ prior_weight_degc_d   degC d     the thermal time of evidence the prior counts a
 memory_degc_d         degC d     thermal time over which past days' weight in the recent rate falls by e
 bank_days             d          days of the pump's shortfall stored in the soil (point 6; 0: none)
 bank_threshold        1          share of the pump's capacity above which recent ET0 counts as shortfall
+prior_et0_share       1          share of the ET0 per degC d seen added to the prior rate (0: the constant
+                                 alone, as in files tuned before it existed, which may leave it out)
 ===================== ========== ==================================================================
 
 The tuned parameters of each task live in ``family_<task>-paced.json`` beside this module, written by
@@ -168,10 +171,17 @@ class PacedParameters:
     memory_degc_d: float = 400.0
     bank_days: float = 0.0
     bank_threshold: float = 0.6
+    prior_et0_share: float = 0.0
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def later(cls) -> tuple[str, ...]:
+        """Parameters added after files were tuned without them: a file may leave them out (their defaults
+        reproduce the rule those files were tuned with)."""
+        return ("prior_et0_share",)
 
 
 class PacedRule(BasePolicy):
@@ -246,7 +256,10 @@ class PacedRule(BasePolicy):
         p = self.parameters
         net = np.maximum(memory["et0_sum"] - memory["rain_sum"], 0.25 * memory["et0_sum"])
         weight = p["prior_weight_degc_d"]
-        rates = (net + p["rate_prior_mm_per_degc_d"] * weight) / np.maximum(memory["tt_sum"] + weight, MIN_RATE_TT_DEGC_D)
+        # The prior: a constant, plus a share of the ET0 per degC d seen (a prior no climate's constant carries).
+        et0_rate = memory["et0_sum"] / np.maximum(memory["tt_sum"], MIN_RATE_TT_DEGC_D)
+        prior = p["rate_prior_mm_per_degc_d"] + p["prior_et0_share"] * et0_rate
+        rates = (net + prior * weight) / np.maximum(memory["tt_sum"] + weight, MIN_RATE_TT_DEGC_D)
         return rates.max(axis=0)
 
     def _act_batch(self, obs):
