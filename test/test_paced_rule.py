@@ -172,7 +172,7 @@ def test_unknown_parameter_is_refused():
     (["--rule", "paced-rule", "--seed", "-1"], "crop-sim tune-rule: --seed"),
     (["--rule", "paced-rule", "--term-draws", "0"], "crop-sim tune-rule: --term-draws: 0 is not in 1..20"),
     (["--rule", "paced-rule", "--space", "wide"], "crop-sim tune-rule: --space: unknown search space 'wide' of "
-                                                  "paced-rule; known: full"),
+                                                  "paced-rule; known: full, canopy"),
 ])
 def test_tuner_refuses_bad_input_in_one_line(arguments, message, capsys):
     from crop_agent_ros.cli import main
@@ -383,3 +383,22 @@ def test_a_search_space_holds_its_fixed_parameters_and_is_recorded(scenario, mon
     assert set(result["parameters"]) == set(PacedParameters.names())
     assert "search_space" not in family_tuning.tune_rule(scenario, np.arange(2), candidates=2, rounds=0,
                                                          rule="paced-rule", log=lambda message: None)
+
+
+def test_rise_weight_spends_less_before_the_canopy_closes_and_the_same_after(scenario):
+    """``rise_weight`` 1: the window's level follows SIMPLE's rising cover 1 / (1 + exp(-0.01 (TT - I50A))), so
+    on a dry soil early in the window (TT 100, cover 0.02) the rule irrigates less than at 0; past full canopy
+    (TT 1400, cover 0.9999) the same; with the default 0 the rule is the one tuned before it existed."""
+    facts = PacedFacts.of_scenario(scenario)
+    days = _season([5.0] * 100, [14.0] * 100)
+    for obs in days:
+        obs[:, PAW] = 20.0
+    window = {"start_offset_degc_d": -500.0, "narrow_degc_d": 0.0, "stop_offset_degc_d": 400.0,
+              "prior_weight_degc_d": 0.0, "margin_mm": 10.0}
+    early, late = 7, 99  # TT 98 and 1386
+    amounts = {}
+    for rise in (0.0, 1.0):
+        rule = PacedRule(facts, {**window, "rise_weight": rise})
+        amounts[rise] = [float(rule.act(obs)[0]) for obs in days]
+    assert amounts[1.0][early] < 0.5 * amounts[0.0][early]
+    assert amounts[1.0][late] == pytest.approx(amounts[0.0][late], rel=1e-3) and amounts[0.0][late] > 0

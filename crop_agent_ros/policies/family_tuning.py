@@ -85,8 +85,13 @@ class SearchSpace:
 
 
 FULL = "full"
-PACED_SPACES = {FULL: SearchSpace("every parameter of PACED_SEARCH_BOX (the shipped files before issue 33's "
-                                  "transfer fix)")}
+PACED_SPACES = {
+    FULL: SearchSpace("every parameter of PACED_SEARCH_BOX (climates-quota's shipped file)"),
+    # Growth is intercepted radiation (SIMPLE's f_Solar): before the canopy closes a mm buys little, whatever the
+    # climate; the late reserve already follows the senescing cover, this lets the window follow the rising one.
+    "canopy": SearchSpace("the full space and rise_weight: the window's level may follow the rising canopy",
+                          box={"rise_weight": (0.0, 1.0)}),
+}
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,10 @@ soil-water sensor's published error (the scenario's ``noise.paw_mm``). Each day 
    ``bank_threshold`` x the pump's capacity), recent ET0 the mean of the recent days (weighed as the recent
    rate of point 4). Storing costs nothing while it is used (SIMPLE's crop transpires at most ET0 however wet
    the soil); where ET0 nears a pivot's 8 mm/d (Maricopa's late season, 8-9 mm/d) the soil must carry the
-   difference. Before the window ``early_factor`` x ET0 / 0.096;
+   difference. The window's level is multiplied by 1 - ``rise_weight`` x (1 - the rising cover), the rising
+   cover SIMPLE's 1 / (1 + exp(-0.01 (TT - I50A))): growth is intercepted radiation, so before the canopy
+   closes a mm buys little growth, in any climate (the late reserve follows the senescing cover likewise).
+   Before the window ``early_factor`` x ET0 / 0.096;
    after it the late level of point 5 (x min(1, ``pace`` x ratio)). On a heat day (f_heat < 1 from today's
    TMAX) growth is already limited to f_heat, and water
    stress down to f_water = f_heat costs neither growth nor canopy life: the level falls by ``heat_weight`` x
@@ -68,12 +71,15 @@ bank_days             d          days of the pump's shortfall stored in the soil
 bank_threshold        1          share of the pump's capacity above which recent ET0 counts as shortfall
 prior_et0_share       1          share of the ET0 per degC d seen added to the prior rate (0: the constant
                                  alone, as in files tuned before it existed, which may leave it out)
+rise_weight           1          how far the window's level follows the rising canopy (point 6; 0: not at
+                                 all, as in files tuned before it existed, which may leave it out)
 ===================== ========== ==================================================================
 
 The tuned parameters of each task live in ``family_<task>-paced.json`` beside this module, written by
 ``crop-sim tune-rule --task TASK --rule paced-rule`` (:mod:`crop_agent_ros.policies.family_tuning`) from
 generated training seasons only; the shipped benton-quota, benton-sensing and climates-quota files with
-``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds). The
+``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds), the
+Benton tasks' with ``--space canopy`` (:data:`~crop_agent_ros.policies.family_tuning.PACED_SPACES`). The
 rule is tuned on its task's training climates only: on a held-out climate (Maricopa for the Benton tasks) its
 parameters are a transfer test.
 """
@@ -172,6 +178,7 @@ class PacedParameters:
     bank_days: float = 0.0
     bank_threshold: float = 0.6
     prior_et0_share: float = 0.0
+    rise_weight: float = 0.0
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
@@ -181,7 +188,7 @@ class PacedParameters:
     def later(cls) -> tuple[str, ...]:
         """Parameters added after files were tuned without them: a file may leave them out (their defaults
         reproduce the rule those files were tuned with)."""
-        return ("prior_et0_share",)
+        return ("prior_et0_share", "rise_weight")
 
 
 class PacedRule(BasePolicy):
@@ -297,12 +304,16 @@ class PacedRule(BasePolicy):
         unstressed = et0 / WATER_UPTAKE_COEFFICIENT
         in_window = (tt >= start) & (tt <= stop)
         cover = 1.0 / (1.0 + np.exp(np.clip(0.01 * (tt - senescence_tt), -50.0, 50.0)))
+        # The rising canopy (SIMPLE's f_Solar before senescence): growth, hence a mm's worth, follows it.
+        rising = 1.0 / (1.0 + np.exp(np.clip(-0.01 * (tt - f.i50a_degc_d), -50.0, 50.0)))
+        rise_share = 1.0 - p["rise_weight"] * (1.0 - rising)
         late = np.where(tt < f.tsum_degc_d, p["late_factor"] * share * cover * heat_share * unstressed, 0.0)
         # The bank: days of the recent ET0 the pump cannot keep up with (point 6).
         et0_recent = m["et0_sum"][1] / np.maximum(m["day_sum"][1], 1.0)
         shortfall = np.maximum(et0_recent - p["bank_threshold"] * obs[:, _COL["capacity_mm_per_day"]], 0.0)
         bank = p["bank_days"] * shortfall
-        level = np.where(in_window, p["level_factor"] * share * heat_share * unstressed + p["margin_mm"] + share * bank,
+        window_level = rise_share * (p["level_factor"] * share * heat_share * unstressed + p["margin_mm"] + share * bank)
+        level = np.where(in_window, window_level,
                          np.where(tt < start, p["early_factor"] * heat_share * unstressed, late))
         amount = np.maximum(np.minimum(level, f.capacity_mm) - paw - rain, 0.0)
         amount = np.where(obs[:, _COL["forecast_rain_mm"]] > p["skip_rain_mm"], 0.0, amount)
