@@ -128,7 +128,8 @@ def test_tuned_file_loads_and_records_its_training(shipped):
     record = json.loads(family_tuning.family_file(TASK, "paced-rule").read_text())
     assert record["rule"] == "paced-rule" and record["scenario"] == TASK
     assert record["seasons"] == list(range(150))  # generated training seasons 0..149 only
-    assert set(record["parameters"]) == set(PacedParameters.names())
+    names = set(PacedParameters.names())
+    assert names - set(PacedParameters.later()) <= set(record["parameters"]) <= names
     assert shipped.name == "paced-rule" and shipped.facts == PacedFacts.from_record(record["facts"])
 
 
@@ -170,6 +171,8 @@ def test_unknown_parameter_is_refused():
     (["--rule", "paced-rule", "--candidates", "0"], "crop-sim tune-rule: --candidates must be in 1..10000"),
     (["--rule", "paced-rule", "--seed", "-1"], "crop-sim tune-rule: --seed"),
     (["--rule", "paced-rule", "--term-draws", "0"], "crop-sim tune-rule: --term-draws: 0 is not in 1..20"),
+    (["--rule", "paced-rule", "--space", "wide"], "crop-sim tune-rule: --space: unknown search space 'wide' of "
+                                                  "paced-rule; known: full, canopy"),
 ])
 def test_tuner_refuses_bad_input_in_one_line(arguments, message, capsys):
     from crop_agent_ros.cli import main
@@ -331,3 +334,71 @@ def test_bank_stores_water_only_where_recent_et0_nears_the_pump_s_capacity(scena
     none = today({"bank_days": 0.0})
     assert today({"bank_days": 1.0, "bank_threshold": 1.0}) == none
     assert today({"bank_days": 1.0, "bank_threshold": 0.5}) > none
+
+
+def test_prior_can_be_a_share_of_the_et0_rate_seen(scenario):
+    """``prior_et0_share`` S: the prior is ``rate_prior_mm_per_degc_d`` + S x the ET0 per degC d seen, so a prior
+    held by a large weight follows the season's own climate, not a constant: at S = 1 (no constant), twice the
+    ET0 per degC d gives twice the rate; at S = 0 the constant alone, whatever the ET0."""
+    facts = PacedFacts.of_scenario(scenario)
+    relative = {"memory_degc_d": 1e9, "rate_prior_mm_per_degc_d": 0.0, "prior_et0_share": 1.0,
+                "prior_weight_degc_d": 1e9}
+    cool, hot = _season([2.0] * 30, [10.0] * 30), _season([4.0] * 30, [10.0] * 30)
+    assert _rate_after(PacedRule(facts, relative), cool)[0] == pytest.approx(0.2, rel=1e-6)
+    assert _rate_after(PacedRule(facts, relative), hot)[0] == pytest.approx(0.4, rel=1e-6)
+    constant = {**relative, "rate_prior_mm_per_degc_d": 0.3, "prior_et0_share": 0.0}
+    assert _rate_after(PacedRule(facts, constant), cool)[0] == pytest.approx(0.3, rel=1e-6)
+    assert _rate_after(PacedRule(facts, constant), hot)[0] == pytest.approx(0.3, rel=1e-6)
+
+
+def test_a_file_tuned_before_a_later_parameter_loads_as_that_rule(recorded, scenario, tmp_path, monkeypatch):
+    """A file without ``prior_et0_share`` (tuned before it existed) loads with its default, 0, the rule it was
+    tuned as: the same actions as with the parameter written out; an unknown parameter is still refused."""
+    record = json.loads(family_tuning.family_file(TASK, "paced-rule").read_text())
+    monkeypatch.setattr(family_tuning, "HERE", tmp_path)
+    path = tmp_path / f"family_{TASK}-paced.json"
+    rules = {}
+    for share in (None, 0.0):
+        parameters = {k: v for k, v in record["parameters"].items() if k != "prior_et0_share"}
+        path.write_text(json.dumps({**record, "parameters": parameters if share is None
+                                    else {**parameters, "prior_et0_share": share}}))
+        rules[share] = family_tuning.tuned_rule(TASK, "paced-rule")
+    assert float(rules[None].parameters["prior_et0_share"]) == 0.0
+    seasons = np.arange(3)
+    terms = draw_terms(scenario, seasons, 0)
+    returns = [run_episodes(rule, scenario, seasons, seed=1, terms=terms).episode_return for rule in rules.values()]
+    assert np.array_equal(returns[0], returns[1])
+
+
+def test_a_search_space_holds_its_fixed_parameters_and_is_recorded(scenario, monkeypatch):
+    """``space``: a named :class:`~family_tuning.SearchSpace`; its fixed parameters are held (every candidate and
+    the result have them), its box bounds the rest, and the result names it (the full space is not named)."""
+    space = family_tuning.SearchSpace("test", box={"prior_weight_degc_d": (0.0, 10.0)},
+                                      fixed={"rate_prior_mm_per_degc_d": 0.0})
+    monkeypatch.setitem(family_tuning.PACED_SPACES, "test", space)
+    result = family_tuning.tune_rule(scenario, np.arange(2), candidates=4, rounds=1, rule="paced-rule",
+                                     log=lambda message: None, space="test")
+    assert result["search_space"] == "test" and result["parameters"]["rate_prior_mm_per_degc_d"] == 0.0
+    assert 0.0 <= result["parameters"]["prior_weight_degc_d"] <= 10.0
+    assert set(result["parameters"]) == set(PacedParameters.names())
+    assert "search_space" not in family_tuning.tune_rule(scenario, np.arange(2), candidates=2, rounds=0,
+                                                         rule="paced-rule", log=lambda message: None)
+
+
+def test_rise_weight_spends_less_before_the_canopy_closes_and_the_same_after(scenario):
+    """``rise_weight`` 1: the window's level follows SIMPLE's rising cover 1 / (1 + exp(-0.01 (TT - I50A))), so
+    on a dry soil early in the window (TT 100, cover 0.02) the rule irrigates less than at 0; past full canopy
+    (TT 1400, cover 0.9999) the same; with the default 0 the rule is the one tuned before it existed."""
+    facts = PacedFacts.of_scenario(scenario)
+    days = _season([5.0] * 100, [14.0] * 100)
+    for obs in days:
+        obs[:, PAW] = 20.0
+    window = {"start_offset_degc_d": -500.0, "narrow_degc_d": 0.0, "stop_offset_degc_d": 400.0,
+              "prior_weight_degc_d": 0.0, "margin_mm": 10.0}
+    early, late = 7, 99  # TT 98 and 1386
+    amounts = {}
+    for rise in (0.0, 1.0):
+        rule = PacedRule(facts, {**window, "rise_weight": rise})
+        amounts[rise] = [float(rule.act(obs)[0]) for obs in days]
+    assert amounts[1.0][early] < 0.5 * amounts[0.0][early]
+    assert amounts[1.0][late] == pytest.approx(amounts[0.0][late], rel=1e-3) and amounts[0.0][late] > 0

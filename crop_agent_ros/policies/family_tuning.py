@@ -2,7 +2,7 @@
 seasons only (never the held-out ones), and write ``family_<task>.json`` beside the rules.
 
     crop-sim tune-rule --task benton-quota [--rule budget-rule|paced-rule] [--seasons 0..199] [--seed 0]
-        [--candidates 192] [--rounds 4] [--term-draws 1]
+        [--candidates 192] [--rounds 4] [--term-draws 1] [--space full]
 
 Two rule families are tuned the same way (:data:`RULES`): the water-budget rule (``budget-rule``, written to
 ``family_<task>.json``) and the paced rule (``paced-rule``, :mod:`crop_agent_ros.policies.paced_rule`, written
@@ -13,12 +13,16 @@ Method: a random search over the rule's parameter box, then rounds of local sear
 still move). Every candidate x season is one field of one batched environment run; every candidate meets the
 same seasons, the same drawn terms (prices, quota) and the same noise seed (common random numbers), so their
 differences are the rule's, not the draw's. The score is the mean return over the seasons.
+
+Search spaces (``--space``, :class:`SearchSpace`): which parameters are searched, within which bounds, and which
+are held at a value, chosen before tuning from what the rule should not rely on (never from a held-out score);
+the file names its space (``search_space``) unless it is the full one.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -69,6 +73,28 @@ PACED_NEVER = {"skip_rain_mm": 1e6, "pace": 1e6, "memory_degc_d": 1e6}
 
 
 @dataclass(frozen=True)
+class SearchSpace:
+    """A named search space of a rule family, chosen before tuning from what the rule should not rely on (never
+    from a held-out score): ``box`` replaces or adds (low, high) bounds of the family's box, ``fixed`` holds
+    parameters at a value (not searched), ``never`` (if given) replaces the family's "never" values."""
+
+    description: str
+    box: dict = field(default_factory=dict)
+    fixed: dict = field(default_factory=dict)
+    never: dict | None = None
+
+
+FULL = "full"
+PACED_SPACES = {
+    FULL: SearchSpace("every parameter of PACED_SEARCH_BOX (climates-quota's shipped file)"),
+    # Growth is intercepted radiation (SIMPLE's f_Solar): before the canopy closes a mm buys little, whatever the
+    # climate; the late reserve already follows the senescing cover, this lets the window follow the rising one.
+    "canopy": SearchSpace("the full space and rise_weight: the window's level may follow the rising canopy",
+                          box={"rise_weight": (0.0, 1.0)}),
+}
+
+
+@dataclass(frozen=True)
 class RuleFamily:
     """A tunable rule family: its facts (from a scenario, to and from JSON), its builder, parameter names and
     defaults, search box, "never" values and the suffix of its file (``family_<task><suffix>.json``)."""
@@ -84,6 +110,14 @@ class RuleFamily:
     never: dict
     suffix: str
     shrink: float = 0.5  # the local search's step scale is multiplied by this each round
+    spaces: dict = field(default_factory=lambda: {FULL: SearchSpace("every parameter of the box")})
+
+    def space(self, name: str) -> tuple[dict, dict, dict]:
+        """The (box, never, fixed) of search space ``name`` (ValueError naming the known ones)."""
+        if name not in self.spaces:
+            raise ValueError(f"--space: unknown search space {name!r} of {self.name}; known: {', '.join(self.spaces)}")
+        space = self.spaces[name]
+        return {**self.box, **space.box}, self.never if space.never is None else space.never, dict(space.fixed)
 
 
 RULES = {
@@ -94,7 +128,8 @@ RULES = {
         SEARCH_BOX, NEVER, ""),
     "paced-rule": RuleFamily(
         "paced-rule", PacedFacts.of_scenario, PacedFacts.record, PacedFacts.from_record, PacedRule,
-        PacedParameters.names(), PacedParameters(), PACED_SEARCH_BOX, PACED_NEVER, "-paced", shrink=0.7),
+        PacedParameters.names(), PacedParameters(), PACED_SEARCH_BOX, PACED_NEVER, "-paced", shrink=0.7,
+        spaces=PACED_SPACES),
 }
 
 
@@ -171,25 +206,30 @@ def _perturb(rng: np.random.Generator, best: list[dict], n: int, scale: float, b
 
 
 def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 192, rounds: int = 4,
-              names: tuple[str, ...] | None = None, log=print, rule: str = "budget-rule", term_draws: int = 1) -> dict:
+              names: tuple[str, ...] | None = None, log=print, rule: str = "budget-rule", term_draws: int = 1,
+              space: str = FULL) -> dict:
     """The best parameters of ``rule`` (a :data:`RULES` name) on ``seasons`` of ``scenario`` (see the module
     docstring), with its score. ``term_draws`` K > 1: every season is met K times, each with its own draw of
-    the terms (quota, prices): the same seasons, K times the terms (less fitting to one quota per season)."""
+    the terms (quota, prices): the same seasons, K times the terms (less fitting to one quota per season).
+    ``space``: the family's search space (:class:`SearchSpace`); its fixed parameters are never searched."""
     family = _family(rule)
-    names = family.names if names is None else names
+    box, never, fixed = family.space(space)
+    searched = tuple(name for name in family.names if name in box and name not in fixed)
+    names = searched if names is None else tuple(name for name in names if name not in fixed)
     facts = family.facts_of(scenario)
     rng = np.random.default_rng(seed)
     unique_seasons, seasons = seasons, np.tile(seasons, term_draws)
     terms = draw_terms(scenario, seasons, seed)
     defaults = {k: np.array([getattr(family.defaults, k)]) for k in names}
-    pool = _random_candidates(rng, candidates - 1, names, family.box, family.never)
+    pool = _random_candidates(rng, candidates - 1, names, box, never)
     pool = {k: np.concatenate([defaults[k], pool[k]]) for k in names}
     history = []
     scale = 0.15
     everything = {k: np.empty(0) for k in names}
     scores_all = np.empty(0)
     for round_ in range(rounds + 1):
-        scores = candidate_returns(scenario, facts, pool, seasons, seed, terms, rule).mean(axis=1)
+        held = {k: np.full(len(pool[names[0]]), v) for k, v in fixed.items()}
+        scores = candidate_returns(scenario, facts, {**pool, **held}, seasons, seed, terms, rule).mean(axis=1)
         everything = {k: np.concatenate([everything[k], pool[k]]) for k in names}
         scores_all = np.concatenate([scores_all, scores])
         order = np.argsort(scores_all)[::-1]
@@ -197,9 +237,11 @@ def tune_rule(scenario, seasons: np.ndarray, seed: int = 0, candidates: int = 19
         history.append(float(scores_all[order[0]]))
         log(f"round {round_}: best mean return {scores_all[order[0]]:.4f} of {len(scores_all)} candidates")
         if round_ < rounds:
-            pool = _perturb(rng, best, candidates, scale, family.box, family.never)
+            pool = _perturb(rng, best, candidates, scale, box, never)
             scale *= family.shrink
-    return {**({} if rule == "budget-rule" else {"rule": rule}), "parameters": best[0], "mean_return": history[-1],
+    return {**({} if rule == "budget-rule" else {"rule": rule}), **({} if space == FULL else {"search_space": space}),
+            "parameters": {**{k: getattr(family.defaults, k) for k in family.names}, **best[0], **fixed},
+            "mean_return": history[-1],
             "history": history, "seasons": [int(s) for s in unique_seasons], "seed": seed,
             **({"term_draws": term_draws} if term_draws > 1 else {}), "scenario": scenario.name,
             "facts": family.facts_record(facts)}
@@ -243,8 +285,9 @@ def paced_rule_from_record(record: dict) -> PacedRule:
         raise ValueError("expected an object with 'facts' and 'parameters'")
     names = set(PacedParameters.names())
     parameters = record["parameters"]
-    if set(parameters) != names:
-        raise ValueError(f"parameters must be exactly {', '.join(PacedParameters.names())}")
+    if not names - set(PacedParameters.later()) <= set(parameters) <= names:
+        raise ValueError(f"parameters must be exactly {', '.join(PacedParameters.names())} (a file tuned before "
+                         f"{', '.join(PacedParameters.later())} existed may leave them out)")
     for key, value in parameters.items():
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
             raise ValueError(f"parameter {key} must be a finite number, got {value!r}")
@@ -265,6 +308,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the search, the terms and the noise")
     parser.add_argument("--candidates", type=int, default=128, help="candidates per round (1..10000)")
     parser.add_argument("--rounds", type=int, default=4, help="local-search rounds after the random one (0..50)")
+    parser.add_argument("--space", default=FULL,
+                        help="the rule's search space (paced-rule: " + ", ".join(PACED_SPACES) + "; default full)")
     parser.add_argument("--term-draws", type=int, default=1,
                         help="draws of the terms (quota, prices) per training season (1..20): the same seasons, "
                              "each met with K quotas")
@@ -287,7 +332,11 @@ def run(args) -> int:
     rule = getattr(args, "rule", "budget-rule")
     if rule not in RULES:
         raise UsageError(f"--rule: unknown rule {rule!r}; known: {', '.join(RULES)}")
-    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, rule=rule, term_draws=term_draws)
+    space = getattr(args, "space", FULL)
+    if space not in RULES[rule].spaces:
+        raise UsageError(f"--space: unknown search space {space!r} of {rule}; known: {', '.join(RULES[rule].spaces)}")
+    result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, rule=rule, term_draws=term_draws,
+                       space=space)
     print(f"tuned {args.task} {rule}: {result['parameters']} mean return {result['mean_return']:.2f}; "
           f"wrote {write_tuned(args.task, result, rule)}")
     return 0

@@ -15,7 +15,8 @@ soil-water sensor's published error (the scenario's ``noise.paw_mm``). Each day 
 4. **Paces the quota by the demand still ahead**: demand = the net ET rate x the thermal time left in the
    window; supply = quota left + the estimated soil water; ratio = supply / demand. The rate (mm per degC d) is
    the larger of two estimates, each sum(ET0 - rain) / sum(dTT) (net ET at least a quarter of ET0) shrunk
-   towards ``rate_prior_mm_per_degc_d`` as if ``prior_weight_degc_d`` degC d of it had been seen: over the
+   towards a prior rate, ``rate_prior_mm_per_degc_d`` + ``prior_et0_share`` x the ET0 per degC d seen (a share:
+   no climate's constant), as if ``prior_weight_degc_d`` degC d of it had been seen: over the
    season so far, and over recent days (each day weighed by exp(-(TT now - TT then) / ``memory_degc_d``)).
    Why the larger: a rate that rises through the season (a cool start, e.g. Maricopa sown in January: net ET
    about 0.2 mm per degC d in the first 300 degC d, 0.35-0.44 after; Benton 0.27-0.33 throughout) is what the
@@ -33,7 +34,10 @@ soil-water sensor's published error (the scenario's ``noise.paw_mm``). Each day 
    ``bank_threshold`` x the pump's capacity), recent ET0 the mean of the recent days (weighed as the recent
    rate of point 4). Storing costs nothing while it is used (SIMPLE's crop transpires at most ET0 however wet
    the soil); where ET0 nears a pivot's 8 mm/d (Maricopa's late season, 8-9 mm/d) the soil must carry the
-   difference. Before the window ``early_factor`` x ET0 / 0.096;
+   difference. The window's level is multiplied by 1 - ``rise_weight`` x (1 - the rising cover), the rising
+   cover SIMPLE's 1 / (1 + exp(-0.01 (TT - I50A))): growth is intercepted radiation, so before the canopy
+   closes a mm buys little growth, in any climate (the late reserve follows the senescing cover likewise).
+   Before the window ``early_factor`` x ET0 / 0.096;
    after it the late level of point 5 (x min(1, ``pace`` x ratio)). On a heat day (f_heat < 1 from today's
    TMAX) growth is already limited to f_heat, and water
    stress down to f_water = f_heat costs neither growth nor canopy life: the level falls by ``heat_weight`` x
@@ -65,12 +69,17 @@ prior_weight_degc_d   degC d     the thermal time of evidence the prior counts a
 memory_degc_d         degC d     thermal time over which past days' weight in the recent rate falls by e
 bank_days             d          days of the pump's shortfall stored in the soil (point 6; 0: none)
 bank_threshold        1          share of the pump's capacity above which recent ET0 counts as shortfall
+prior_et0_share       1          share of the ET0 per degC d seen added to the prior rate (0: the constant
+                                 alone, as in files tuned before it existed, which may leave it out)
+rise_weight           1          how far the window's level follows the rising canopy (point 6; 0: not at
+                                 all, as in files tuned before it existed, which may leave it out)
 ===================== ========== ==================================================================
 
 The tuned parameters of each task live in ``family_<task>-paced.json`` beside this module, written by
 ``crop-sim tune-rule --task TASK --rule paced-rule`` (:mod:`crop_agent_ros.policies.family_tuning`) from
 generated training seasons only; the shipped benton-quota, benton-sensing and climates-quota files with
-``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds). The
+``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds), the
+Benton tasks' with ``--space canopy`` (:data:`~crop_agent_ros.policies.family_tuning.PACED_SPACES`). The
 rule is tuned on its task's training climates only: on a held-out climate (Maricopa for the Benton tasks) its
 parameters are a transfer test.
 """
@@ -168,10 +177,18 @@ class PacedParameters:
     memory_degc_d: float = 400.0
     bank_days: float = 0.0
     bank_threshold: float = 0.6
+    prior_et0_share: float = 0.0
+    rise_weight: float = 0.0
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
         return tuple(f.name for f in fields(cls))
+
+    @classmethod
+    def later(cls) -> tuple[str, ...]:
+        """Parameters added after files were tuned without them: a file may leave them out (their defaults
+        reproduce the rule those files were tuned with)."""
+        return ("prior_et0_share", "rise_weight")
 
 
 class PacedRule(BasePolicy):
@@ -246,7 +263,10 @@ class PacedRule(BasePolicy):
         p = self.parameters
         net = np.maximum(memory["et0_sum"] - memory["rain_sum"], 0.25 * memory["et0_sum"])
         weight = p["prior_weight_degc_d"]
-        rates = (net + p["rate_prior_mm_per_degc_d"] * weight) / np.maximum(memory["tt_sum"] + weight, MIN_RATE_TT_DEGC_D)
+        # The prior: a constant, plus a share of the ET0 per degC d seen (a prior no climate's constant carries).
+        et0_rate = memory["et0_sum"] / np.maximum(memory["tt_sum"], MIN_RATE_TT_DEGC_D)
+        prior = p["rate_prior_mm_per_degc_d"] + p["prior_et0_share"] * et0_rate
+        rates = (net + prior * weight) / np.maximum(memory["tt_sum"] + weight, MIN_RATE_TT_DEGC_D)
         return rates.max(axis=0)
 
     def _act_batch(self, obs):
@@ -284,12 +304,16 @@ class PacedRule(BasePolicy):
         unstressed = et0 / WATER_UPTAKE_COEFFICIENT
         in_window = (tt >= start) & (tt <= stop)
         cover = 1.0 / (1.0 + np.exp(np.clip(0.01 * (tt - senescence_tt), -50.0, 50.0)))
+        # The rising canopy (SIMPLE's f_Solar before senescence): growth, hence a mm's worth, follows it.
+        rising = 1.0 / (1.0 + np.exp(np.clip(-0.01 * (tt - f.i50a_degc_d), -50.0, 50.0)))
+        rise_share = 1.0 - p["rise_weight"] * (1.0 - rising)
         late = np.where(tt < f.tsum_degc_d, p["late_factor"] * share * cover * heat_share * unstressed, 0.0)
         # The bank: days of the recent ET0 the pump cannot keep up with (point 6).
         et0_recent = m["et0_sum"][1] / np.maximum(m["day_sum"][1], 1.0)
         shortfall = np.maximum(et0_recent - p["bank_threshold"] * obs[:, _COL["capacity_mm_per_day"]], 0.0)
         bank = p["bank_days"] * shortfall
-        level = np.where(in_window, p["level_factor"] * share * heat_share * unstressed + p["margin_mm"] + share * bank,
+        window_level = rise_share * (p["level_factor"] * share * heat_share * unstressed + p["margin_mm"] + share * bank)
+        level = np.where(in_window, window_level,
                          np.where(tt < start, p["early_factor"] * heat_share * unstressed, late))
         amount = np.maximum(np.minimum(level, f.capacity_mm) - paw - rain, 0.0)
         amount = np.where(obs[:, _COL["forecast_rain_mm"]] > p["skip_rain_mm"], 0.0, amount)
