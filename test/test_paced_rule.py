@@ -336,34 +336,19 @@ def test_bank_stores_water_only_where_recent_et0_nears_the_pump_s_capacity(scena
     assert today({"bank_days": 1.0, "bank_threshold": 0.5}) > none
 
 
-def test_prior_can_be_a_share_of_the_et0_rate_seen(scenario):
-    """``prior_et0_share`` S: the prior is ``rate_prior_mm_per_degc_d`` + S x the ET0 per degC d seen, so a prior
-    held by a large weight follows the season's own climate, not a constant: at S = 1 (no constant), twice the
-    ET0 per degC d gives twice the rate; at S = 0 the constant alone, whatever the ET0."""
-    facts = PacedFacts.of_scenario(scenario)
-    relative = {"memory_degc_d": 1e9, "rate_prior_mm_per_degc_d": 0.0, "prior_et0_share": 1.0,
-                "prior_weight_degc_d": 1e9}
-    cool, hot = _season([2.0] * 30, [10.0] * 30), _season([4.0] * 30, [10.0] * 30)
-    assert _rate_after(PacedRule(facts, relative), cool)[0] == pytest.approx(0.2, rel=1e-6)
-    assert _rate_after(PacedRule(facts, relative), hot)[0] == pytest.approx(0.4, rel=1e-6)
-    constant = {**relative, "rate_prior_mm_per_degc_d": 0.3, "prior_et0_share": 0.0}
-    assert _rate_after(PacedRule(facts, constant), cool)[0] == pytest.approx(0.3, rel=1e-6)
-    assert _rate_after(PacedRule(facts, constant), hot)[0] == pytest.approx(0.3, rel=1e-6)
-
-
 def test_a_file_tuned_before_a_later_parameter_loads_as_that_rule(recorded, scenario, tmp_path, monkeypatch):
-    """A file without ``prior_et0_share`` (tuned before it existed) loads with its default, 0, the rule it was
+    """A file without ``rise_weight`` (tuned before it existed) loads with its default, 0, the rule it was
     tuned as: the same actions as with the parameter written out; an unknown parameter is still refused."""
     record = json.loads(family_tuning.family_file(TASK, "paced-rule").read_text())
     monkeypatch.setattr(family_tuning, "HERE", tmp_path)
     path = tmp_path / f"family_{TASK}-paced.json"
     rules = {}
     for share in (None, 0.0):
-        parameters = {k: v for k, v in record["parameters"].items() if k != "prior_et0_share"}
+        parameters = {k: v for k, v in record["parameters"].items() if k != "rise_weight"}
         path.write_text(json.dumps({**record, "parameters": parameters if share is None
-                                    else {**parameters, "prior_et0_share": share}}))
+                                    else {**parameters, "rise_weight": share}}))
         rules[share] = family_tuning.tuned_rule(TASK, "paced-rule")
-    assert float(rules[None].parameters["prior_et0_share"]) == 0.0
+    assert float(rules[None].parameters["rise_weight"]) == 0.0
     seasons = np.arange(3)
     terms = draw_terms(scenario, seasons, 0)
     returns = [run_episodes(rule, scenario, seasons, seed=1, terms=terms).episode_return for rule in rules.values()]

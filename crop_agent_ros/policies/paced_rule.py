@@ -15,8 +15,7 @@ soil-water sensor's published error (the scenario's ``noise.paw_mm``). Each day 
 4. **Paces the quota by the demand still ahead**: demand = the net ET rate x the thermal time left in the
    window; supply = quota left + the estimated soil water; ratio = supply / demand. The rate (mm per degC d) is
    the larger of two estimates, each sum(ET0 - rain) / sum(dTT) (net ET at least a quarter of ET0) shrunk
-   towards a prior rate, ``rate_prior_mm_per_degc_d`` + ``prior_et0_share`` x the ET0 per degC d seen (a share:
-   no climate's constant), as if ``prior_weight_degc_d`` degC d of it had been seen: over the
+   towards ``rate_prior_mm_per_degc_d`` as if ``prior_weight_degc_d`` degC d of it had been seen: over the
    season so far, and over recent days (each day weighed by exp(-(TT now - TT then) / ``memory_degc_d``)).
    Why the larger: a rate that rises through the season (a cool start, e.g. Maricopa sown in January: net ET
    about 0.2 mm per degC d in the first 300 degC d, 0.35-0.44 after; Benton 0.27-0.33 throughout) is what the
@@ -69,8 +68,6 @@ prior_weight_degc_d   degC d     the thermal time of evidence the prior counts a
 memory_degc_d         degC d     thermal time over which past days' weight in the recent rate falls by e
 bank_days             d          days of the pump's shortfall stored in the soil (point 6; 0: none)
 bank_threshold        1          share of the pump's capacity above which recent ET0 counts as shortfall
-prior_et0_share       1          share of the ET0 per degC d seen added to the prior rate (0: the constant
-                                 alone, as in files tuned before it existed, which may leave it out)
 rise_weight           1          how far the window's level follows the rising canopy (point 6; 0: not at
                                  all, as in files tuned before it existed, which may leave it out)
 ===================== ========== ==================================================================
@@ -177,7 +174,6 @@ class PacedParameters:
     memory_degc_d: float = 400.0
     bank_days: float = 0.0
     bank_threshold: float = 0.6
-    prior_et0_share: float = 0.0
     rise_weight: float = 0.0
 
     @classmethod
@@ -188,7 +184,7 @@ class PacedParameters:
     def later(cls) -> tuple[str, ...]:
         """Parameters added after files were tuned without them: a file may leave them out (their defaults
         reproduce the rule those files were tuned with)."""
-        return ("prior_et0_share", "rise_weight")
+        return ("rise_weight",)
 
 
 class PacedRule(BasePolicy):
@@ -263,10 +259,7 @@ class PacedRule(BasePolicy):
         p = self.parameters
         net = np.maximum(memory["et0_sum"] - memory["rain_sum"], 0.25 * memory["et0_sum"])
         weight = p["prior_weight_degc_d"]
-        # The prior: a constant, plus a share of the ET0 per degC d seen (a prior no climate's constant carries).
-        et0_rate = memory["et0_sum"] / np.maximum(memory["tt_sum"], MIN_RATE_TT_DEGC_D)
-        prior = p["rate_prior_mm_per_degc_d"] + p["prior_et0_share"] * et0_rate
-        rates = (net + prior * weight) / np.maximum(memory["tt_sum"] + weight, MIN_RATE_TT_DEGC_D)
+        rates = (net + p["rate_prior_mm_per_degc_d"] * weight) / np.maximum(memory["tt_sum"] + weight, MIN_RATE_TT_DEGC_D)
         return rates.max(axis=0)
 
     def _act_batch(self, obs):
