@@ -25,10 +25,9 @@ import pytest
 
 import ros_support  # noqa: E402  (sets ROS_DOMAIN_ID / discovery range before any context exists)
 import rclpy.parameter  # noqa: E402
-from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
 import rosgraph_msgs.msg  # noqa: E402
-from std_msgs.msg import Float64MultiArray  # noqa: E402
+from crop_sim_interfaces.msg import IrrigationCommand, IrrigationStatus  # noqa: E402
 
 from crop_agent_ros.ros.spin import PrivateRos  # noqa: E402
 from crop_agent_ros.ros.process import isolated_ros_env  # noqa: E402
@@ -561,16 +560,16 @@ def test_a_burst_of_commands_is_queued_not_dropped_and_counted(sim, ros):
     ros.spin_until(lambda: statuses[-1]["episode"] == client.episode, 10, "the status of the new season")
     received_before = statuses[-1]["commands_received"]
     answers = []
-    answer_sub = ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
-                                              lambda m: answers.append(ri.status_values(m)), ri.COMMAND_SUBSCRIPTION_QOS)
-    publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/{ri.IRRIGATION_TOPIC}",
+    answer_sub = ros.node.create_subscription(IrrigationStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
+                                              answers.append, ri.COMMAND_SUBSCRIPTION_QOS)
+    publisher = ros.node.create_publisher(IrrigationCommand, f"{name}/{ri.IRRIGATION_TOPIC}",
                                           ri.COMMAND_SUBSCRIPTION_QOS)
     ros.spin_until(lambda: publisher.get_subscription_count() >= 1 and answer_sub.get_publisher_count() >= 1, 20,
                    "the command topics")
     n = 1000
     amounts = [float(i % 97) for i in range(n)]
     for mm in amounts:
-        publisher.publish(ri.irrigation_command(0, mm, client.episode))
+        publisher.publish(IrrigationCommand(day=0, irrigation_mm=mm, episode=client.episode))
     try:
         ros.spin_until(lambda: statuses[-1]["commands_received"] >= received_before + n, 30, "every command counted")
     except TimeoutError:
@@ -578,7 +577,8 @@ def test_a_burst_of_commands_is_queued_not_dropped_and_counted(sim, ros):
     status = statuses[-1]
     assert status["commands_received"] == received_before + n, (status["commands_received"] - received_before, status)
     ros.spin_until(lambda: len(answers) >= n, 30, "an answer to every command")
-    assert [a["sequence"] for a in answers] == list(range(received_before + 1, received_before + n + 1))
-    assert all(a["accepted"] for a in answers) and [a["irrigation_mm"] for a in answers] == amounts
+    assert [a.sequence for a in answers] == list(range(received_before + 1, received_before + n + 1))
+    assert all(a.fate == IrrigationStatus.ACCEPTED for a in answers)
+    assert [a.command.irrigation_mm for a in answers] == amounts
     summary = raw_step(ros, name)
     assert summary["irrigation_mm"] == amounts[-1] and summary["command_sequence"] == received_before + n
