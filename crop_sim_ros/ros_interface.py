@@ -102,6 +102,7 @@ from __future__ import annotations
 
 import math
 from datetime import date, datetime, timezone
+
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy

@@ -157,7 +157,8 @@ class FarmSession:
             return f"day {day} is in the future: the current day is {self.day}", True
         today_ns = farm_time_ns(self.sowing, day)
         if command.stamp_ns not in (0, today_ns):  # the client's farm time is another season's, or wrong
-            return (f"header.stamp {command.stamp_ns / 1e9:.9f} s is not the farm time of day {day} "
+            sec, ns = divmod(command.stamp_ns, 10**9)
+            return (f"header.stamp {sec}.{ns:09d} s is not the farm time of day {day} "
                     f"({today_ns // 10**9} s: {self.sowing + timedelta(days=day)} 00:00 UTC)"), False
         if not math.isfinite(mm):
             return f"irrigation {mm!r} mm is not a finite number", False
