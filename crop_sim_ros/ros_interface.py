@@ -47,17 +47,17 @@ Name                                 Type                           Content
                                                                     event cost USD, quota mm, capacity mm/d,
                                                                     action bound mm, potential yield t/ha
 ``/clock`` (parameter clock_topic)   rosgraph_msgs/Clock            farm time: sowing date 00:00 UTC + day
-``~/irrigation`` (subscribed)        crop_sim_interfaces/           the day's command: day, irrigation mm,
-                                     IrrigationCommand              episode (-1 = any); header: farm time
-                                                                    of the day (0 = unchecked), the field
-                                                                    ('' = any)
-``~/irrigation_step`` (subscribed)   crop_sim_interfaces/           the same command, and step at once
-                                     IrrigationCommand              (lockstep): one round trip per day
-``~/irrigation_status``              crop_sim_interfaces/           each command's fate: ACCEPTED, REFUSED
-                                     IrrigationStatus               (why), or CUT after a step whose command
-                                                                    the capacity or the quota cut (mm
-                                                                    applied); the command as received, its
-                                                                    sequence
+``~/irrigation`` (subscribed)        crop_sim_interfaces/IrrigationCommand  the day's command: day, irrigation
+                                                                    mm, episode (-1 = any); header: farm
+                                                                    time of the day (0 = unchecked), the
+                                                                    field ('' = any)
+``~/irrigation_step`` (subscribed)   crop_sim_interfaces/IrrigationCommand  the same command, and step at once
+                                                                    (lockstep): one round trip per day
+``~/irrigation_status``              crop_sim_interfaces/IrrigationStatus  each command's fate: ACCEPTED,
+                                                                    REFUSED (why), or CUT after a step whose
+                                                                    command the capacity or the quota cut
+                                                                    (mm applied); the command as received,
+                                                                    its sequence
 ``/diagnostics``                     diagnostic_msgs/DiagnosticArray   the node's status (one DiagnosticStatus
                                                                     named ``<node>: farm``): days without a
                                                                     command, commands received / accepted /
@@ -65,9 +65,9 @@ Name                                 Type                           Content
                                                                     (level WARN, ERROR); every second and at
                                                                     once on a change (rqt_robot_monitor and
                                                                     the diagnostic aggregator read it)
-``<agent>/run_season`` (action)      crop_sim_interfaces/action/    served by the agent node: scenario, seed,
-                                     RunSeason                      policy in; a StepResult per day as
-                                                                    feedback; yield, water, return out
+``<agent>/run_season`` (action)      crop_sim_interfaces/action/RunSeason  served by the agent node: scenario,
+                                                                    seed, policy in; a StepResult per day
+                                                                    as feedback; yield, water, return out
 ==================================== ============================== ==========================================
 
 ``day`` is the number of days since sowing of the state the message describes (0 after a reset); the
