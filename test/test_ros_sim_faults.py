@@ -8,6 +8,7 @@ Every node runs as its own process on this test process's private ROS_DOMAIN_ID 
 from __future__ import annotations
 
 import csv
+import os
 import resource
 import shutil
 import signal
@@ -84,6 +85,16 @@ def whole_rows(path: Path) -> list[list[str]]:
 
 
 # --- the command line ----------------------------------------------------------------------------------------
+
+def test_a_child_process_imports_this_checkout(tmp_path):
+    """isolated_ros_env puts the repository (the folder holding crop_sim_ros) first on a child's PYTHONPATH, so a
+    node started from a checkout or a git worktree runs that tree's code, not the editable install's."""
+    env = isolated_ros_env(base={k: v for k, v in os.environ.items() if k != "PYTHONPATH"})
+    assert env["PYTHONPATH"].split(os.pathsep)[0] == str(ros_support.REPO)
+    done = subprocess.run([sys.executable, "-c", "import crop_sim_ros; print(crop_sim_ros.__file__)"], env=env,
+                          cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert done.stdout.strip() == str(ros_support.REPO / "crop_sim_ros" / "__init__.py"), done.stderr
+
 
 def test_help_prints_the_parameters_and_starts_nothing(tmp_path):
     env = {**isolated_ros_env(), "ROS_HOME": str(tmp_path / "ros_home")}  # where a started node would log
