@@ -4,8 +4,8 @@ message type as ``ros2 topic pub`` / ``ros2 service call`` / ``ros2 action send_
 function that takes and refuses the same values: a byte field such as DiagnosticStatus.level takes
 ``!!binary``, not the ``"\x01"`` that ``ros2 topic echo`` prints), matches what the node publishes (types,
 the observation's labels), the examples agree with each other (the command of irrigation.yaml is for the day
-the reset of reset.yaml starts on, stamped with its farm time, step.yaml's answer is the next day, and step_result, crop_state and the
-weather examples are that day), and their values are the offline environment's."""
+the reset of reset.yaml starts on, stamped with its farm time, step.yaml's answer is the next day, and
+step_result, crop_state and the weather examples are that day), and their values are the offline environment's."""
 
 from __future__ import annotations
 

@@ -354,8 +354,8 @@ def test_reacting_learned_agent_commands_the_offline_agents_amounts(tmp_path, qu
             applied = []
             for day in range(8):  # (a status of the previous season's day may still arrive: match the amount)
                 ros.spin_until(lambda: any(s.fate == IrrigationStatus.ACCEPTED and s.command.day == day
-                                           and s.command.irrigation_mm == requested[day] for s in statuses), 30, f"the agent's command of {requested[day]} mm "
-                               f"for day {day}")
+                                           and s.command.irrigation_mm == requested[day] for s in statuses), 30,
+                               f"the agent's command of {requested[day]} mm for day {day}")
                 applied.append(ros_support.raw_step(ros, name)["irrigation_mm"])
         assert applied == expected and any(applied), (applied, agent.output())
     finally:

@@ -6,9 +6,9 @@ the caller's node and executor (one thread; no background spinning), with ``call
 
 ``via="topic"`` (the default; one round trip per day):
     publish an IrrigationCommand (day, mm, episode; stamped with the day's farm time and addressed to the field,
-    both from the reset reply's FarmTerms) on ``<sim>/irrigation_step``; the
-    simulator validates the command, applies it and steps at once; the client waits for ``<sim>/step_result`` and ``<sim>/observation`` of the new day
-    (float32 observation and float64 reward, exactly). A refusal arrives on ``<sim>/irrigation_status``.
+    both from the reset reply's FarmTerms) on ``<sim>/irrigation_step``; the simulator validates the command,
+    applies it and steps at once; the client waits for ``<sim>/step_result`` and ``<sim>/observation`` of the
+    new day (float32 observation and float64 reward, exactly). A refusal arrives on ``<sim>/irrigation_status``.
     The day is named in the command, so a repeated message can never step twice (it would be for a past day).
 
 ``via="service"`` (the typed service any client can use; one round trip per day):
