@@ -6,8 +6,9 @@ The state topics, the step result, the services and the action are the typed int
 ``crop_sim_interfaces`` package (``ros2 interface show crop_sim_interfaces/msg/CropState``): named fields with
 their units, stamped in farm time (sowing date 00:00 UTC + day days) with the field as ``header.frame_id``
 (the simulator's namespace, ``field7`` under ``/field7``; ``farm`` at the root). The RL observation stays a
-``std_msgs/Float32MultiArray`` (a learner's vector, exactly as the Gymnasium env gives it); commands are
-``[day, mm(, episode)]`` arrays; command fates and the node's status are diagnostic_msgs.
+``std_msgs/Float32MultiArray`` (a learner's vector, exactly as the Gymnasium env gives it). The irrigation
+command (crop_sim_interfaces/msg/IrrigationCommand) is stamped with the farm time of the day it is for and
+addressed to the field; its fate comes back as an IrrigationStatus. The node's status is diagnostic_msgs'.
 
 Names are relative to the simulator node (``~/...``, default node name ``crop_sim``), so
 ``-r __ns:=/field7`` or ``-r __node:=...`` runs several farms side by side. Two names are global: ``/clock``
@@ -46,13 +47,17 @@ Name                                 Type                           Content
                                                                     event cost USD, quota mm, capacity mm/d,
                                                                     action bound mm, potential yield t/ha
 ``/clock`` (parameter clock_topic)   rosgraph_msgs/Clock            farm time: sowing date 00:00 UTC + day
-``~/irrigation`` (subscribed)        std_msgs/Float64MultiArray     command [day, mm] or [day, mm, episode]
-``~/irrigation_step`` (subscribed)   std_msgs/Float64MultiArray     the same command, and step at once
+``~/irrigation`` (subscribed)        crop_sim_interfaces/IrrigationCommand  the day's command: day, irrigation
+                                                                    mm, episode (-1 = any); header: farm
+                                                                    time of the day (0 = unchecked), the
+                                                                    field ('' = any)
+``~/irrigation_step`` (subscribed)   crop_sim_interfaces/IrrigationCommand  the same command, and step at once
                                                                     (lockstep): one round trip per day
-``~/irrigation_status``              diagnostic_msgs/DiagnosticStatus  each command's fate: level OK
-                                                                    (accepted) or ERROR (rejected, why);
-                                                                    WARN after a step whose command the
-                                                                    capacity or the quota cut
+``~/irrigation_status``              crop_sim_interfaces/IrrigationStatus  each command's fate: ACCEPTED,
+                                                                    REFUSED (why), or CUT after a step whose
+                                                                    command the capacity or the quota cut
+                                                                    (mm applied); the command as received,
+                                                                    its sequence
 ``/diagnostics``                     diagnostic_msgs/DiagnosticArray   the node's status (one DiagnosticStatus
                                                                     named ``<node>: farm``): days without a
                                                                     command, commands received / accepted /
@@ -60,9 +65,9 @@ Name                                 Type                           Content
                                                                     (level WARN, ERROR); every second and at
                                                                     once on a change (rqt_robot_monitor and
                                                                     the diagnostic aggregator read it)
-``<agent>/run_season`` (action)      crop_sim_interfaces/action/    served by the agent node: scenario, seed,
-                                     RunSeason                      policy in; a StepResult per day as
-                                                                    feedback; yield, water, return out
+``<agent>/run_season`` (action)      crop_sim_interfaces/action/RunSeason  served by the agent node: scenario,
+                                                                    seed, policy in; a StepResult per day
+                                                                    as feedback; yield, water, return out
 ==================================== ============================== ==========================================
 
 ``day`` is the number of days since sowing of the state the message describes (0 after a reset); the
@@ -97,15 +102,16 @@ from __future__ import annotations
 
 import math
 from datetime import date, datetime, timezone
-from typing import Generic, NamedTuple, TypeVar, get_type_hints
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from crop_sim_interfaces.msg import CropState, FarmTerms, Forecast, StepResult, Weather
-from std_msgs.msg import Float32MultiArray, Float64MultiArray, MultiArrayDimension
+from crop_sim_interfaces.msg import (CropState, FarmTerms, Forecast, IrrigationCommand, IrrigationStatus, StepResult,
+                                     Weather)
+from std_msgs.msg import Float32MultiArray, Header, MultiArrayDimension
 
+from .session import Command, farm_time_ns
 from .task.layout import (BIOMASS, DAY, FORECAST, PAPER, PAW, PAW_OBSERVED, THERMAL_TIME, TODAY, WEATHER_NAMES,
                           ObservationLayout, layout_of_size)
 
@@ -177,58 +183,6 @@ OBS_THERMAL_TIME = THERMAL_TIME
 TERM_FIELDS = ("tuber_price_usd_per_t", "water_cost_usd_per_mm", "event_cost_usd", "quota_mm", "capacity_mm_per_day")
 # Forecast's noise SD fields, in WEATHER_NAMES order: tmax_degc -> tmax_sd_degc, wind_m_s -> wind_sd_m_s.
 FORECAST_SD_FIELDS = tuple("_sd_".join(name.split("_", 1)) for name in WEATHER_NAMES)
-
-Record = TypeVar("Record", bound=tuple)
-_CASTS = {int: int, float: float, bool: lambda value: value == 1.0}
-
-
-class ArrayCodec(Generic[Record]):
-    """One Float64MultiArray layout (the irrigation command's), declared once: a NamedTuple's fields (typed
-    ``int``, ``bool`` or ``float``) and, for each, its label ``name[unit]``; the message's labels,
-    :meth:`message`/:meth:`fill` (record -> message) and :meth:`read` (message -> record) all derive from it.
-    ``int`` and ``bool`` travel as float64 (exact for whole numbers; a bool is 1.0 or 0.0)."""
-
-    def __init__(self, record: type[Record], labels: tuple[str, ...]):
-        if len(labels) != len(record._fields):
-            raise ValueError(f"{record.__name__}: {len(record._fields)} fields, {len(labels)} labels")
-        self.record, self.labels = record, tuple(labels)
-        types = get_type_hints(record)
-        self._casts = tuple(_CASTS[types[name]] for name in record._fields)
-
-    def labelled(self) -> Float64MultiArray:
-        """A new message with this layout's labels and no values yet (to :meth:`fill` again and again)."""
-        message = Float64MultiArray()
-        _layout(message, self.labels)
-        return message
-
-    def message(self, record: Record) -> Float64MultiArray:
-        """A new labelled message carrying ``record``."""
-        return self.fill(self.labelled(), record)
-
-    def fill(self, message: Float64MultiArray, record: Record) -> Float64MultiArray:
-        """``message`` (made by :meth:`labelled`, reused: publishing serialises at once) now carries ``record``."""
-        message.data = [float(value) for value in record]
-        return message
-
-    def read(self, message: Float64MultiArray) -> Record:
-        """The record a message carries; ValueError if it has another number of values than the fields."""
-        values = message.data
-        if len(values) != len(self._casts):
-            raise ValueError(f"{self.record.__name__} message has {len(values)} values, expected "
-                             f"{len(self._casts)} ({','.join(self.labels)})")
-        return self.record(*(cast(value) for cast, value in zip(self._casts, values)))
-
-
-class IrrigationCommand(NamedTuple):
-    """~/irrigation and ~/irrigation_step: ``irrigation_mm`` for ``day``, valid only in ``episode`` (a command of
-    two values, without the episode, is valid in any; the simulator checks what arrives, see FarmSession)."""
-    day: int
-    irrigation_mm: float
-    episode: int
-
-
-IRRIGATION = ArrayCodec(IrrigationCommand, ("day[d]", "irrigation[mm]", "episode[1]"))
-
 
 # --- the typed state messages (crop_sim_interfaces) -----------------------------------------------------------
 
@@ -311,7 +265,6 @@ def reset_summary(terms: FarmTerms, observation) -> dict:
             "observation_size": len(observation), "observation": observation}
 
 
-STATUS_NAME = "crop_sim/irrigation"
 # The node's status on /diagnostics is named "<fully qualified node name without the leading />: farm".
 NODE_STATUS_SUFFIX = ": farm"
 # The node's status values: counters are whole numbers, season_ended is "true"/"false", the others are text.
@@ -352,53 +305,35 @@ def observation_layout(message) -> ObservationLayout:
     return layout_of_size(len(message.data))
 
 
-def irrigation_command(day: int, mm: float, episode: int | None = None) -> Float64MultiArray:
-    """A command for ``day`` (optionally only valid in ``episode``, the simulator's reset counter)."""
-    if episode is None:  # the two-value form, valid in any episode
-        message = Float64MultiArray()
-        _layout(message, IRRIGATION.labels[:2])
-        message.data = [float(day), float(mm)]
-        return message
-    return IRRIGATION.message(IrrigationCommand(day, mm, episode))
-
-
 def sim_time(sowing: date, day: int) -> Time:
     """Farm time of ``day``: midnight UTC of the sowing date plus ``day`` days."""
-    seconds = int(datetime(sowing.year, sowing.month, sowing.day, tzinfo=timezone.utc).timestamp()) + 86400 * day
-    return Time(sec=seconds, nanosec=0)
+    return Time(sec=farm_time_ns(sowing, day) // 10**9, nanosec=0)
 
 
 def clock_message(sowing: date, day: int) -> Clock:
     return Clock(clock=sim_time(sowing, day))
 
 
-def status_message(accepted: bool, text: str, day, mm, sequence: int, current_day: int,
-                   applied_mm: float | None = None) -> DiagnosticStatus:
-    """The fate of one irrigation command (values as repr strings: they parse back to the same floats). With
-    ``applied_mm`` (after the step: the capacity or the quota cut the command), level WARN and the mm applied."""
-    level = (DiagnosticStatus.ERROR if not accepted else DiagnosticStatus.OK if applied_mm is None
-             else DiagnosticStatus.WARN)
-    values = [KeyValue(key="day", value=repr(day)), KeyValue(key="irrigation_mm", value=repr(mm)),
-              KeyValue(key="sequence", value=str(sequence)), KeyValue(key="current_day", value=str(current_day)),
-              KeyValue(key="accepted", value="true" if accepted else "false")]
-    if applied_mm is not None:
-        values.append(KeyValue(key="applied_mm", value=repr(applied_mm)))
-    return DiagnosticStatus(level=level, name=STATUS_NAME, message=text, hardware_id="", values=values)
+def command_of(message: IrrigationCommand) -> Command:
+    """What the simulator checks of a received IrrigationCommand (plain Python, for the FarmSession)."""
+    stamp = message.header.stamp
+    return Command(message.day, message.irrigation_mm, message.episode, stamp.sec * 10**9 + stamp.nanosec,
+                   message.header.frame_id)
 
 
-def status_values(message: DiagnosticStatus) -> dict:
-    """DiagnosticStatus of a command -> {"day", "irrigation_mm", "sequence", "current_day", "accepted", "message",
-    "applied_mm" (NaN unless the status reports a cut command)}."""
-    values = {kv.key: kv.value for kv in message.values}
-    out = {"accepted": values.get("accepted") == "true", "message": message.message}
-    for key in ("day", "irrigation_mm", "applied_mm"):
-        try:
-            out[key] = float(values.get(key, "nan"))
-        except ValueError:
-            out[key] = math.nan
-    for key in ("sequence", "current_day"):
-        out[key] = int(values.get(key, "-1"))
-    return out
+def command_message(command: Command) -> IrrigationCommand:
+    """A Command back as the IrrigationCommand it came as (for its IrrigationStatus)."""
+    stamp = Time(sec=command.stamp_ns // 10**9, nanosec=command.stamp_ns % 10**9)
+    return IrrigationCommand(header=Header(stamp=stamp, frame_id=command.field), day=command.day,
+                             irrigation_mm=command.mm, episode=command.episode)
+
+
+def status_message(fate: int, text: str, command: Command, sequence: int, header: Header, episode: int,
+                   current_day: int, applied_mm: float = math.nan) -> IrrigationStatus:
+    """The fate of one irrigation command: IrrigationStatus.ACCEPTED, REFUSED, or CUT (``applied_mm``: what the
+    step applied); ``header``: the simulator's current day in farm time and its field."""
+    return IrrigationStatus(header=header, fate=fate, message=text, sequence=sequence, episode=episode,
+                            current_day=current_day, command=command_message(command), applied_mm=applied_mm)
 
 
 def node_status_name(node_name: str) -> str:

@@ -7,8 +7,8 @@ under ``task/env.py``:
 ===================== ==================================================================================
 Call                  What it does
 ===================== ==================================================================================
-``command(values)``   checks a command ``[day, mm]`` or ``[day, mm, episode]`` against the current day,
-                      episode and limits; an accepted one becomes today's pending command. Returns a
+``command(command)``  checks a :class:`Command` against the field, the current episode, day and its farm
+                      time, and the limits; an accepted one becomes today's pending command. Returns a
                       :class:`CommandOutcome` (accepted, or refused with a reason; ``timing``: only
                       too early, too late or for another episode)
 ``step()``            advances one day with the pending command for today (none: 0 mm). Returns a
@@ -24,6 +24,7 @@ State (read by the node for its topics, log and its status on /diagnostics):
 ======================== ====== ==============================================================================
 Name                     Unit   Description
 ======================== ====== ==============================================================================
+field                    -      the field the session serves (the node's namespace, ``farm`` at the root)
 episode                  1      episodes started since the node started (0 before the first reset)
 day                      d      days since sowing of the current season
 ended, end_reason        -      whether the season is over, and why ("crop mature on day 131", ...)
@@ -33,7 +34,7 @@ sowing                   date   the season's sowing date
 seed, weather_season     -      the reset's seed (None: unseeded) and the weather season drawn
 terms                    -      the season's farm terms in ``ros_interface.FarmTerms`` order (no episode)
 max_mm                   mm/d   the largest command accepted (the scenario's action bound)
-pending                  -      (day, mm, sequence) of today's accepted command, or None
+pending                  -      (command, sequence) of today's accepted command, or None
 commands_received        1      commands received since the start (accepted + rejected)
 commands_accepted        1      of which accepted
 commands_rejected        1      of which rejected
@@ -45,13 +46,31 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from datetime import date
+from datetime import date, timedelta
 
 import numpy as np
 
 from .task import IrrigationEnv
 
 FREE_RUNNING_STEP_REFUSAL = "mode is free_running: the node steps by itself; use ~/irrigation"
+ANY_EPISODE = -1  # a command's episode: valid in any (crop_sim_interfaces/msg/IrrigationCommand.ANY_EPISODE)
+NS_PER_DAY = 86_400 * 10**9
+
+
+def farm_time_ns(sowing: date, day: int) -> int:
+    """Farm time of ``day``: midnight UTC of the sowing date plus ``day`` days, ns since 1970-01-01 UTC."""
+    return ((sowing - date(1970, 1, 1)).days + day) * NS_PER_DAY
+
+
+@dataclass(frozen=True)
+class Command:
+    """One irrigation command as received (crop_sim_interfaces/msg/IrrigationCommand without ROS types)."""
+
+    day: int  # days since sowing of the day it is for
+    mm: float  # the day's irrigation, mm
+    episode: int = ANY_EPISODE  # the reset counter it is valid in; ANY_EPISODE: any
+    stamp_ns: int = 0  # farm time of the day it is for, ns since 1970-01-01 UTC; 0: unstamped (not checked)
+    field: str = ""  # the field it is for; '': any
 
 
 @dataclass(frozen=True)
@@ -61,8 +80,7 @@ class CommandOutcome:
     accepted: bool
     text: str
     timing: bool  # refused only for its timing (a past or future day, another episode, an ended season)
-    day: float  # as commanded (NaN if missing)
-    mm: float
+    command: Command
     sequence: int
     current_day: int
 
@@ -85,6 +103,7 @@ class StepOutcome:
     truncated: bool = False
     yield_t_ha: float = 0.0  # the season's yield on its last day, else 0
     sequence: int = -1  # the command applied (-1: none, 0 mm)
+    command: Command | None = None  # the command applied (None: none)
     environment_failed: bool = False  # the error came from the environment (not an ended season)
 
     @property
@@ -100,8 +119,9 @@ class StepOutcome:
 class FarmSession:
     """One field's seasons, its commands and counters (see the module docstring)."""
 
-    def __init__(self, env: IrrigationEnv):
+    def __init__(self, env: IrrigationEnv, field: str = "farm"):
         self.env = env
+        self.field = field
         self.max_mm = float(env.scenario.max_irrigation_mm)
         self.episode = 0
         self.day = 0
@@ -113,7 +133,7 @@ class FarmSession:
         self.weather_season = -1
         self.sowing = date(2000, 1, 1)
         self.terms: tuple[float, ...] = ()
-        self.pending: tuple[int, float, int] | None = None
+        self.pending: tuple[Command, int] | None = None
         self.commands_received = 0
         self.commands_accepted = 0
         self.commands_rejected = 0
@@ -121,23 +141,25 @@ class FarmSession:
 
     # --- commands ----------------------------------------------------------------------------------------
 
-    def check_command(self, values: list) -> tuple[str | None, bool]:
-        """(why this command [day, mm] or [day, mm, episode] is refused, or None; whether it is only a question
-        of timing: a past or future day, another episode, a season that ended)."""
-        day = values[0] if values else math.nan
-        mm = values[1] if len(values) > 1 else math.nan
-        if len(values) not in (2, 3):
-            return f"expected [day, mm] or [day, mm, episode], got {len(values)} values", False
-        if not (math.isfinite(day) and day == int(day)):
-            return f"day {day!r} is not a whole number", False
-        if len(values) == 3 and values[2] != self.episode:
-            return f"episode {values[2]!r} is not the current episode {self.episode}", True
+    def check_command(self, command: Command) -> tuple[str | None, bool]:
+        """(why ``command`` is refused, or None; whether it is only a question of timing: a past or future day,
+        another episode, a season that ended)."""
+        day, mm = command.day, command.mm
+        if command.field not in ("", self.field):
+            return f"frame_id {command.field!r} is not this simulator's field {self.field!r}", False
+        if command.episode not in (ANY_EPISODE, self.episode):
+            return f"episode {command.episode} is not the current episode {self.episode}", True
         if self.ended:
             return self._ended_text(), True
         if day < self.day:
-            return f"day {int(day)} is past: the current day is {self.day}", True
+            return f"day {day} is past: the current day is {self.day}", True
         if day > self.day:
-            return f"day {int(day)} is in the future: the current day is {self.day}", True
+            return f"day {day} is in the future: the current day is {self.day}", True
+        today_ns = farm_time_ns(self.sowing, day)
+        if command.stamp_ns not in (0, today_ns):  # the client's farm time is another season's, or wrong
+            sec, ns = divmod(command.stamp_ns, 10**9)
+            return (f"header.stamp {sec}.{ns:09d} s is not the farm time of day {day} "
+                    f"({today_ns // 10**9} s: {self.sowing + timedelta(days=day)} 00:00 UTC)"), False
         if not math.isfinite(mm):
             return f"irrigation {mm!r} mm is not a finite number", False
         if mm < 0.0:
@@ -146,25 +168,23 @@ class FarmSession:
             return f"irrigation {mm!r} mm exceeds the limit of {self.max_mm:g} mm/day", False
         return None, False
 
-    def command(self, values: list, and_step: bool = False, lockstep: bool = True) -> CommandOutcome:
+    def command(self, command: Command, and_step: bool = False, lockstep: bool = True) -> CommandOutcome:
         """Check a command; an accepted one becomes today's pending command (replacing an earlier one).
         ``and_step``: the client also asks for the step (refused unless ``lockstep``)."""
         self.commands_received += 1
         sequence = self.commands_received
-        day = values[0] if values else math.nan
-        mm = values[1] if len(values) > 1 else math.nan
-        problem, timing = self.check_command(values)
+        problem, timing = self.check_command(command)
         if problem is None and and_step and not lockstep:
             problem, timing = FREE_RUNNING_STEP_REFUSAL, False
         if problem is None:
             self.commands_accepted += 1
-            self.pending = (self.day, float(mm), sequence)
-            text = (f"accepted {mm:g} mm for day {self.day} (episode {self.episode})"
+            self.pending = (command, sequence)
+            text = (f"accepted {command.mm:g} mm for day {self.day} (episode {self.episode})"
                     + (", stepping" if and_step else ""))
         else:
             self.commands_rejected += 1
             text = f"rejected: {problem}"
-        return CommandOutcome(problem is None, text, timing, day, mm, sequence, self.day)
+        return CommandOutcome(problem is None, text, timing, command, sequence, self.day)
 
     # --- step --------------------------------------------------------------------------------------------
 
@@ -174,9 +194,10 @@ class FarmSession:
         if self.ended:
             return StepOutcome(self._ended_text(), self.episode, self.day)
         day, obs_before = self.day, self.obs
-        mm, sequence = 0.0, -1
-        if self.pending is not None and self.pending[0] == day:
-            _, mm, sequence = self.pending
+        mm, sequence, command = 0.0, -1, None
+        if self.pending is not None and self.pending[0].day == day:
+            command, sequence = self.pending
+            mm = float(command.mm)
         self.pending = None
         try:
             obs, reward, terminated, truncated, info = self.env.step(mm)
@@ -195,7 +216,7 @@ class FarmSession:
                                else f"weather ran out on day {self.day}")
         return StepOutcome(None, self.episode, self.day, day, obs_before, obs, info,
                            info["irrigation_requested_mm"], info["irrigation_applied_mm"], float(reward), terminated,
-                           truncated, info["yield_t_ha"] if terminated else 0.0, sequence)
+                           truncated, info["yield_t_ha"] if terminated else 0.0, sequence, command)
 
     def _ended_text(self) -> str:
         return f"the season has ended ({self.end_reason}); call ~/reset"

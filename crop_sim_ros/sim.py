@@ -22,15 +22,16 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType,
                                 SetParametersResult)
 from rclpy.node import Node
-from crop_sim_interfaces.msg import CropState, FarmTerms, Forecast, StepResult, Weather
+from crop_sim_interfaces.msg import (CropState, FarmTerms, Forecast, IrrigationCommand, IrrigationStatus, StepResult,
+                                     Weather)
 from crop_sim_interfaces.srv import Reset, Step
 from rosgraph_msgs.msg import Clock
-from std_msgs.msg import Float32MultiArray, Float64MultiArray
+from std_msgs.msg import Float32MultiArray, Header
 
 from . import ros_interface as ri
 from .safe_yaml import YamlInputError, read_yaml
 from .season_log import TERM_COLUMNS, SeasonLog, log_path_problem
-from .session import FarmSession
+from .session import Command, FarmSession
 from .sim_parameters import MODES, NODE_NAME, PARAMETERS, READ_ONLY_PARAMETERS, ParameterSpec
 from .task import IrrigationEnv, ObservationNoise, Scenario, get_scenario, load_scenario
 from .task.layout import PAPER, layout_of_size
@@ -215,7 +216,7 @@ class SimNode(Node):
         except Exception as error:  # noqa: BLE001 - a broken weather file, ...: a start-up configuration error
             raise StartupError(scenario_error(self._env_config, error)) from None
         # what commands, steps and resets do to the farm (under self._lock)
-        self._session = FarmSession(env)
+        self._session = FarmSession(env, ri.field_frame(self.get_namespace()))
         self._log_path = self._resolve_log_path()
         self._log = self._open_log(self._log_path)
         self._run_id = f"{socket.gethostname()}-{os.getpid()}-{datetime.now(timezone.utc):%Y%m%dT%H%M%S}"
@@ -232,13 +233,13 @@ class SimNode(Node):
         self._pub_result = self.create_publisher(StepResult, "~/" + ri.STEP_RESULT_TOPIC, ri.STATE_QOS)
         self._pub_terms = self.create_publisher(FarmTerms, "~/" + ri.FARM_TERMS_TOPIC, ri.STATE_QOS)
         self._pub_clock = self._clock_publisher(self.get_parameter("clock_topic").value)
-        self._pub_status = self.create_publisher(DiagnosticStatus, "~/" + ri.IRRIGATION_STATUS_TOPIC,
+        self._pub_status = self.create_publisher(IrrigationStatus, "~/" + ri.IRRIGATION_STATUS_TOPIC,
                                                  ri.COMMAND_STATUS_QOS)
         self._pub_diagnostics = self.create_publisher(DiagnosticArray, ri.DIAGNOSTICS_TOPIC, ri.DIAGNOSTICS_QOS)
         self._status_name = ri.node_status_name(self.get_fully_qualified_name())
         self._msg_obs = ri.observation_message(np.zeros(PAPER.size, np.float32))  # relabelled at each reset
         # Messages reused day after day (publishing serialises at once), stamped with the field as frame_id
-        frame = ri.field_frame(self.get_namespace())
+        frame = self._session.field
         self._msg_crop = ri.stamped(CropState(), frame)
         self._msg_today = ri.stamped(Weather(), frame)
         self._msg_forecast = ri.stamped(Forecast(), frame)
@@ -246,9 +247,9 @@ class SimNode(Node):
         self._msg_result = ri.stamped(StepResult(), frame)
         self._msg_terms = ri.stamped(FarmTerms(), frame)
 
-        self.create_subscription(Float64MultiArray, "~/" + ri.IRRIGATION_TOPIC, self._on_irrigation,
+        self.create_subscription(IrrigationCommand, "~/" + ri.IRRIGATION_TOPIC, self._on_irrigation,
                                  ri.COMMAND_SUBSCRIPTION_QOS)
-        self.create_subscription(Float64MultiArray, "~/" + ri.IRRIGATION_STEP_TOPIC, self._on_irrigation_step,
+        self.create_subscription(IrrigationCommand, "~/" + ri.IRRIGATION_STEP_TOPIC, self._on_irrigation_step,
                                  ri.COMMAND_SUBSCRIPTION_QOS)
         self.create_service(Step, "~/" + ri.STEP_SERVICE, self._on_step)
         self.create_service(Reset, "~/" + ri.RESET_SERVICE, self._on_reset)
@@ -349,33 +350,41 @@ class SimNode(Node):
 
     # --- commands ----------------------------------------------------------------------------------------
 
-    def _accept(self, values: list, and_step: bool = False):
+    def _accept(self, command: Command, and_step: bool = False):
         """The session checks a command (an accepted one becomes the day's pending command); its fate goes to
         ~/irrigation_status and refusals to the log. Returns the session's CommandOutcome."""
-        outcome = self._session.command(values, and_step, lockstep=self._mode() == "lockstep")
+        outcome = self._session.command(command, and_step, lockstep=self._mode() == "lockstep")
         if not outcome.accepted:
-            where = "irrigation_step" if and_step else "irrigation"
+            where = (f"{'irrigation_step' if and_step else 'irrigation'} command #{outcome.sequence} "
+                     f"(day {command.day}, {command.mm!r} mm, episode {command.episode})")
             if outcome.timing:  # a command that came too late or too early: at most one log line a second
-                self.get_logger().warning(f"{where} command #{outcome.sequence} {values}: {outcome.text} (such "
-                                          "rejections are logged at most once a second; all are on "
-                                          "~/irrigation_status)", throttle_duration_sec=1.0)
+                self.get_logger().warning(f"{where}: {outcome.text} (such rejections are logged at most once a "
+                                          "second; all are on ~/irrigation_status)", throttle_duration_sec=1.0)
             else:
-                self.get_logger().warning(f"{where} command #{outcome.sequence} {values}: {outcome.text}")
+                self.get_logger().warning(f"{where}: {outcome.text}")
         if not outcome.accepted or not and_step:  # an accepted stepping command's fate is its ~/step_result
-            self._pub_status.publish(ri.status_message(outcome.accepted, outcome.text, outcome.day, outcome.mm,
-                                                       outcome.sequence, outcome.current_day))
+            fate = IrrigationStatus.ACCEPTED if outcome.accepted else IrrigationStatus.REFUSED
+            self._publish_command_status(fate, outcome.text, command, outcome.sequence)
         return outcome
 
-    def _on_irrigation(self, message: Float64MultiArray) -> None:
-        with self._lock:
-            self._accept(list(message.data))
+    def _publish_command_status(self, fate: int, text: str, command: Command, sequence: int,
+                                applied_mm: float = math.nan) -> None:
+        """A command's IrrigationStatus, stamped with the current day's farm time."""
+        session = self._session
+        header = Header(stamp=ri.sim_time(session.sowing, session.day), frame_id=session.field)
+        self._pub_status.publish(ri.status_message(fate, text, command, sequence, header, session.episode,
+                                                   session.day, applied_mm))
 
-    def _on_irrigation_step(self, message: Float64MultiArray) -> None:
+    def _on_irrigation(self, message: IrrigationCommand) -> None:
+        with self._lock:
+            self._accept(ri.command_of(message))
+
+    def _on_irrigation_step(self, message: IrrigationCommand) -> None:
         """A command that also asks for the step: validated like ~/irrigation, then the day is stepped at once
         (lockstep mode). One topic round trip per day instead of a command, its acknowledgement and a service
         call; the outcome is on ~/step_result and ~/observation (and ~/irrigation_status if refused)."""
         with self._lock:
-            if self._accept(list(message.data), and_step=True).accepted:
+            if self._accept(ri.command_of(message), and_step=True).accepted:
                 error = self._step(defer=True)
                 if error:
                     self.get_logger().error(error)
@@ -395,10 +404,7 @@ class SimNode(Node):
                 error = self._step(defer=True)
             else:
                 day = session.day if request.day == Step.Request.ANY else request.day
-                command = [float(day), request.irrigation_mm]
-                if request.episode != Step.Request.ANY:
-                    command.append(float(request.episode))
-                outcome = self._accept(command, and_step=True)
+                outcome = self._accept(Command(day, request.irrigation_mm, request.episode), and_step=True)
                 error = outcome.text if not outcome.accepted else self._step(defer=True)
             if error:
                 response.success, response.message = False, error
@@ -426,9 +432,8 @@ class SimNode(Node):
                 return outcome.error
             day, info = outcome.day_before, outcome.info
             if outcome.cut:  # the capacity or the quota cut the command (it was within the action bound)
-                self._pub_status.publish(ri.status_message(True, session.cut_reason(outcome), day,
-                                                           outcome.requested_mm, outcome.sequence, day + 1,
-                                                           applied_mm=outcome.applied_mm))
+                self._publish_command_status(IrrigationStatus.CUT, session.cut_reason(outcome), outcome.command,
+                                             outcome.sequence, applied_mm=outcome.applied_mm)
             if outcome.sequence < 0:
                 if free_running:  # in lockstep a step without a command is the caller's choice of 0 mm
                     self.get_logger().warning(

@@ -16,13 +16,18 @@ After a reset the field is on day 0 (the sowing day) and the node publishes day 
 ``~/step`` (``crop_sim_interfaces/srv/Step``) with today's ``irrigation_mm`` (and optionally the ``day`` and
 ``episode`` it is meant for): the node checks the command, applies it, advances exactly one day, answers with
 the day's ``StepResult`` and observation, and publishes the new day. A client may instead publish a command
-``[day, mm]`` (or ``[day, mm, episode]``) on ``~/irrigation`` ahead of the day (free-running mode's way); in
-lockstep a step's own command replaces it. Each command is applied at most once and only to the day it names:
+(``crop_sim_interfaces/msg/IrrigationCommand``: day, irrigation_mm, episode, -1 = any; stamped with the farm
+time of the day, addressed to the field in ``header.frame_id``) on ``~/irrigation`` ahead of the day
+(free-running mode's way); in lockstep a step's own command replaces it. Each command is applied at most once
+and only to the day it names:
 
 - a command for a past day, a future day, another episode, or after the season ended is rejected;
+- so is one for another field (``header.frame_id`` neither '' nor the node's field) or stamped with another
+  time than the farm time of its day (a stamp of 0 is not checked);
 - NaN, infinite, negative or over-limit (> the scenario's ``max_irrigation_mm``) amounts are rejected;
-- rejected commands are logged and reported on ``~/irrigation_status`` (level ERROR, with the reason);
-  accepted ones are reported too (level OK); a refused ``~/step`` says why in its reply;
+- rejected commands are logged and reported on ``~/irrigation_status``
+  (``crop_sim_interfaces/msg/IrrigationStatus``, fate REFUSED, with the reason); accepted ones are reported
+  too (ACCEPTED); a refused ``~/step`` says why in its reply;
 - a step with no accepted command for the day applies 0 mm (counted: ``days_without_command`` in the node's
   status on ``/diagnostics``; in free-running mode such a day is also a warning in the node's log).
 
@@ -49,7 +54,7 @@ A family scenario (``scenario:=benton-quota``, any built-in family task or a YAM
 ``limits``) serves the family's task: the observation has 29 values (labels from its layout), rewards are net
 return in USD/ha, and ``~/farm_terms`` carries the season's drawn price, water cost, quota and capacity at
 each reset. The irrigation applied is min(command, capacity, quota left): a command the capacity or the
-quota cut is accepted, and after its step ``~/irrigation_status`` says so (level WARN, with the mm applied).
+quota cut is accepted, and after its step ``~/irrigation_status`` says so (fate CUT, with the mm applied).
 A scenario change between the paper's task and a family task takes effect at the next reset: every topic
 then carries the new layout. A refusal is
 ``success: false`` with the reason in ``message``; the state is then unchanged.

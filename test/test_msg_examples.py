@@ -3,9 +3,9 @@ message type as ``ros2 topic pub`` / ``ros2 service call`` / ``ros2 action send_
 ``set_message_fields`` on ``yaml.safe_load``'s values; where rosidl_runtime_py is not installed, a port of that
 function that takes and refuses the same values: a byte field such as DiagnosticStatus.level takes
 ``!!binary``, not the ``"\x01"`` that ``ros2 topic echo`` prints), matches what the node publishes (types,
-labels of the arrays left), the examples agree with each other (the command of irrigation.yaml is for the day
-the reset of reset.yaml starts on, step.yaml's answer is the next day, and step_result, crop_state and the
-weather examples are that day), and their values are the offline environment's."""
+the observation's labels), the examples agree with each other (the command of irrigation.yaml is for the day
+the reset of reset.yaml starts on, stamped with its farm time, step.yaml's answer is the next day, and
+step_result, crop_state and the weather examples are that day), and their values are the offline environment's."""
 
 from __future__ import annotations
 
@@ -23,7 +23,8 @@ import yaml
 
 
 from crop_sim_interfaces.action import RunSeason  # noqa: E402
-from crop_sim_interfaces.msg import CropState, FarmTerms, Forecast, StepResult, Weather  # noqa: E402
+from crop_sim_interfaces.msg import (CropState, FarmTerms, Forecast, IrrigationCommand, IrrigationStatus,  # noqa: E402
+                                     StepResult, Weather)
 from crop_sim_interfaces.srv import Reset, Step  # noqa: E402
 from rclpy.serialization import deserialize_message, serialize_message  # noqa: E402
 
@@ -42,9 +43,9 @@ INTERFACE = {
     "/crop_sim/weather/forecast": ("topic", "crop_sim_interfaces/msg/Forecast", None),
     "/crop_sim/step_result": ("topic", "crop_sim_interfaces/msg/StepResult", None),
     "/crop_sim/farm_terms": ("topic", "crop_sim_interfaces/msg/FarmTerms", None),
-    "/crop_sim/irrigation": ("topic", "std_msgs/msg/Float64MultiArray", ri.IRRIGATION.labels[:2]),
-    "/crop_sim/irrigation_step": ("topic", "std_msgs/msg/Float64MultiArray", ri.IRRIGATION.labels),
-    "/crop_sim/irrigation_status": ("topic", "diagnostic_msgs/msg/DiagnosticStatus", None),
+    "/crop_sim/irrigation": ("topic", "crop_sim_interfaces/msg/IrrigationCommand", None),
+    "/crop_sim/irrigation_step": ("topic", "crop_sim_interfaces/msg/IrrigationCommand", None),
+    "/crop_sim/irrigation_status": ("topic", "crop_sim_interfaces/msg/IrrigationStatus", None),
     "/diagnostics": ("topic", "diagnostic_msgs/msg/DiagnosticArray", None),
     "/clock": ("topic", "rosgraph_msgs/msg/Clock", None),
     "/crop_sim/step": ("service", "crop_sim_interfaces/srv/Step", None),
@@ -146,8 +147,8 @@ def test_example_fills_the_real_type(path):
     assert example["kind"] == kind and example["type"] == type_name
     cls = interface_class(type_name)
     if kind == "topic":
-        messages = [example["message"]] + [example[k] for k in ("message_with_episode", "rejected_message",
-                                                                 "family_message") if k in example]
+        messages = [example["message"]] + [example[k] for k in ("any_message", "rejected_message", "family_message")
+                                           if k in example]
         for values in messages:
             message = fill(cls(), values)
             again = deserialize_message(serialize_message(message), cls)
@@ -168,15 +169,15 @@ def test_example_fills_the_real_type(path):
             (status,) = ri.node_statuses(first, "/crop_sim")
             assert [kv.key for kv in node_status.values] == list(ri.NODE_STATUS_KEYS)
             assert status["level"] == 1 and status["days_without_command"] == status["day"] - 1
-        elif type_name.endswith("DiagnosticStatus"):
-            status = ri.status_values(first)
-            assert status["accepted"] and status["irrigation_mm"] == 12.5
+        elif type_name.endswith("IrrigationStatus"):
+            assert first.fate == IrrigationStatus.ACCEPTED and first.command.irrigation_mm == 12.5
+            assert first.command.header == first.header and math.isnan(first.applied_mm)
         if example["command"].startswith("ros2 topic pub"):  # the command publishes the example as it stands
             *_, topic, type_arg, payload = shlex.split(example["command"])
             assert (topic, type_arg) == (example["name"], type_name)
             assert plain(fill(cls(), yaml.safe_load(payload), "command")) == plain(first)
         if example["name"] in ("/crop_sim/irrigation", "/crop_sim/irrigation_step"):
-            assert first.data[0] == int(first.data[0]) and 0 <= first.data[1] <= 100
+            assert 0 <= first.irrigation_mm <= 100 and first.episode != IrrigationCommand.ANY_EPISODE
             assert example["command"].startswith("ros2 topic pub")
     elif kind == "service":
         *_, service, type_arg, payload = shlex.split(example["command"])
@@ -238,22 +239,24 @@ def test_the_examples_tell_one_story_reset_command_status_step_clock():
     episode, sowing = terms.episode, date.fromisoformat(terms.sowing_date)
     assert same(plain(terms), plain(fill(FarmTerms(), _example("farm_terms")["message"])))
     assert plain(result) == plain(fill(StepResult(), _example("step_result")["message"]))
-    command = _example("irrigation")
-    assert command["message"]["data"] == [0, 12.5]
-    assert command["message_with_episode"]["data"] == [0, 12.5, episode]
-    assert _example("irrigation_step")["message"]["data"] == [0, 12.5, episode]
+    command = fill(IrrigationCommand(), _example("irrigation")["message"])
+    day_0 = ri.sim_time(sowing, 0)
+    assert (command.day, command.irrigation_mm, command.episode, command.header.stamp) == (0, 12.5, episode, day_0)
+    assert command == fill(IrrigationCommand(), _example("irrigation_step")["message"])
+    by_hand = fill(IrrigationCommand(), _example("irrigation")["any_message"])
+    assert (by_hand.header.stamp.sec, by_hand.header.frame_id, by_hand.episode) == (0, "", -1)
     status_example = _example("irrigation_status")
-    accepted = ri.status_values(fill(interface_class("diagnostic_msgs/msg/DiagnosticStatus")(),
-                                     status_example["message"]))
-    assert accepted["accepted"] and accepted["day"] == accepted["current_day"] == 0
-    assert accepted["message"] == f"accepted 12.5 mm for day 0 (episode {episode})"
-    refused = ri.status_values(fill(interface_class("diagnostic_msgs/msg/DiagnosticStatus")(),
-                                    status_example["rejected_message"]))
-    assert not refused["accepted"] and refused["current_day"] == 0 and refused["day"] == 1
-    assert refused["message"] == "rejected: day 1 is in the future: the current day is 0"
-    assert refused["sequence"] == accepted["sequence"] + 1
+    accepted = fill(IrrigationStatus(), status_example["message"])
+    assert accepted.fate == IrrigationStatus.ACCEPTED and accepted.command == command
+    assert (accepted.current_day, accepted.episode, accepted.header) == (0, episode, command.header)
+    assert accepted.message == f"accepted 12.5 mm for day 0 (episode {episode})"
+    refused = fill(IrrigationStatus(), status_example["rejected_message"])
+    assert refused.fate == IrrigationStatus.REFUSED and refused.current_day == 0 and refused.command.day == 1
+    assert refused.command.header.stamp == ri.sim_time(sowing, 1) and refused.header == accepted.header
+    assert refused.message == "rejected: day 1 is in the future: the current day is 0"
+    assert refused.sequence == accepted.sequence + 1
     assert (result.episode, result.day, result.irrigation_mm) == (episode, 1, 12.5)
-    assert result.command_sequence == accepted["sequence"]
+    assert result.command_sequence == accepted.sequence
     day_1 = ri.sim_time(sowing, 1).sec
     assert _example("clock")["message"]["clock"]["sec"] == day_1 == result.header.stamp.sec
     assert terms.header.stamp.sec == ri.sim_time(sowing, 0).sec

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exists)
-from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
+from crop_sim_interfaces.msg import IrrigationStatus  # noqa: E402
 from rcl_interfaces.srv import GetParameters  # noqa: E402
 from crop_sim_interfaces.srv import Step  # noqa: E402
 
@@ -37,20 +37,28 @@ def test_reactive_agent_commands_every_day(tmp_path):
     agent = None
     try:
         with PrivateRos(f"stepper_{uuid.uuid4().hex[:6]}") as ros:
-            accepted = []
-            status = ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
-                                                  lambda m: accepted.append(ri.status_values(m)), ri.READER_QOS)
+            statuses: list[IrrigationStatus] = []
+            status = ros.node.create_subscription(IrrigationStatus, f"{name}/irrigation_status", statuses.append,
+                                                  ri.READER_QOS)
             step = ros.node.create_client(Step, f"{name}/step")
             wait_for_service(ros.executor, step, 30)
             ros.spin_until(lambda: status.get_publisher_count() >= 1, 30, "the status topic")
             agent = NodeProcess("crop_agent_ros.ros.agent_node", env=isolated_ros_env(), name="agent_node",
                                 log_path=tmp_path / "agent.out",
                                 ros_args=["-p", f"sim_node:={name}", "-p", "policy:=constant", "-p", "constant_mm:=7.5"])
+            field = name.rpartition("/")[0].strip("/")
             for day in range(10):  # the agent commands each day as soon as it sees the day's observation
-                ros.spin_until(lambda: any(a["accepted"] and a["day"] == day for a in accepted), 30,
-                               f"the agent's command for day {day}")
+                accepted = lambda: [s for s in statuses  # noqa: E731
+                                    if s.fate == IrrigationStatus.ACCEPTED and s.command.day == day]
+                ros.spin_until(accepted, 30, f"the agent's command for day {day}")
+                # stamped with the day's farm time, for this field and this episode only (from its StepResult)
+                command, answer = accepted()[0].command, accepted()[0]
+                assert command.header.stamp.sec > 0 and command.header.stamp == answer.header.stamp
+                assert command.header.frame_id == field == answer.header.frame_id
+                assert command.episode == answer.episode == 1 and command.irrigation_mm == 7.5
                 response = call(ros.executor, step, ros_support.pending_step())
                 assert response.success and response.result.irrigation_mm == 7.5
+                assert response.result.header.stamp.sec == command.header.stamp.sec + 86400
         rows = ros_support.read_log(log)
         assert [(int(r["day"]), float(r["irrigation_mm"])) for r in rows] == [(d, 7.5) for d in range(10)]
     finally:

@@ -1,7 +1,7 @@
 """The ROS edge's message fillers and readers (crop_sim_ros.ros_interface): the typed crop_sim_interfaces
 messages carry the observation's values exactly, stamped in farm time with the field as frame, through the
-wire format; the step and reset replies read back into the bridge's info dicts; the one Float64MultiArray
-left (the irrigation command) keeps its codec."""
+wire format; the step and reset replies read back into the bridge's info dicts; the irrigation command goes
+to the farm session and back into its status exactly."""
 
 from __future__ import annotations
 
@@ -10,9 +10,11 @@ from datetime import date
 
 import numpy as np
 import pytest
-from crop_sim_interfaces.msg import CropState, FarmTerms, Forecast, StepResult, Weather
+from builtin_interfaces.msg import Time
+from crop_sim_interfaces.msg import (CropState, FarmTerms, Forecast, IrrigationCommand, IrrigationStatus, StepResult,
+                                     Weather)
 from rclpy.serialization import deserialize_message, serialize_message
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Header
 
 from crop_sim_ros import ros_interface as ri
 from crop_sim_ros.task.layout import EXTENDED, PAPER, WEATHER_NAMES
@@ -94,13 +96,21 @@ def test_the_frame_is_the_field_namespace(namespace, frame):
     assert ri.field_frame(namespace) == frame
 
 
-def test_irrigation_commands_with_and_without_an_episode_round_trip():
-    with_episode = ri.irrigation_command(4, 2.5, 7)
-    back = ri.IRRIGATION.read(deserialize_message(serialize_message(with_episode), Float64MultiArray))
-    assert back == ri.IrrigationCommand(4, 2.5, 7) and type(back.day) is int
-    without = ri.irrigation_command(4, 2.5)
-    assert list(without.data) == [4.0, 2.5] and without.layout.dim[0].label == "day[d],irrigation[mm]"
-    message = Float64MultiArray()
-    message.data = [1.0, 2.0]
-    with pytest.raises(ValueError, match=r"IrrigationCommand message has 2 values, expected 3"):
-        ri.IRRIGATION.read(message)
+def test_an_irrigation_command_reaches_the_session_and_its_status_carries_it_back_exactly():
+    """IrrigationCommand -> the session's Command (stamp in ns, field) -> the IrrigationStatus's copy, through
+    the wire; the farm time of a day is whole seconds at midnight UTC."""
+    stamp = ri.sim_time(date(2000, 4, 1), 4)
+    assert (stamp.sec, stamp.nanosec) == (954547200 + 4 * 86400, 0)
+    sent = wire(IrrigationCommand(header=Header(stamp=Time(sec=stamp.sec, nanosec=7), frame_id="field7"), day=4,
+                                  irrigation_mm=2.5, episode=7))
+    command = ri.command_of(sent)
+    assert (command.day, command.mm, command.episode, command.field) == (4, 2.5, 7, "field7")
+    assert command.stamp_ns == stamp.sec * 10**9 + 7
+    today = Header(stamp=stamp, frame_id="field7")
+    status = wire(ri.status_message(IrrigationStatus.CUT, "cut: ...", command, 12, today, 7, 5, applied_mm=1.5))
+    assert status.command == sent and (status.fate, status.sequence, status.episode, status.current_day,
+                                       status.applied_mm) == (IrrigationStatus.CUT, 12, 7, 5, 1.5)
+    assert status.header == today and status.message == "cut: ..."
+    refused = ri.status_message(IrrigationStatus.REFUSED, "rejected: ...", ri.command_of(IrrigationCommand()), 13,
+                                today, 7, 4)
+    assert math.isnan(refused.applied_mm) and refused.command.episode == IrrigationCommand.ANY_EPISODE == -1

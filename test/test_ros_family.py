@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 import ros_support  # noqa: E402  (private ROS_DOMAIN_ID before any context exists)
-from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
-from crop_sim_interfaces.msg import CropState, FarmTerms, StepResult  # noqa: E402
+from crop_sim_interfaces.msg import CropState, FarmTerms, IrrigationStatus, StepResult  # noqa: E402
 from std_msgs.msg import Float32MultiArray  # noqa: E402
 
 from crop_agent_ros.ros.bridge import RosIrrigationEnv  # noqa: E402
@@ -138,8 +137,8 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
                                      (ri.CROP_STATE_TOPIC, CropState, "crop")):
                 ros.node.create_subscription(kind, f"{name}/{topic}", lambda m, k=key: got[k].append(m),
                                              ri.READER_QOS)
-            ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
-                                         lambda m: got["status"].append(m), ri.COMMAND_QOS)
+            ros.node.create_subscription(IrrigationStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
+                                         got["status"].append, ri.COMMAND_QOS)
             client = ros_support.connect(ros, name, via="service", verify_topics=True, timeout=TIMEOUT_S)
 
             def season(scenario, seed, actions):
@@ -161,7 +160,7 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
             last = float(back[-1]["day"])  # the last season's last day: the last PAW and step result published
             ros.spin_until(lambda: len(got["crop"]) >= days and len(got["result"]) >= days and len(got["terms"]) >= 4
                            and got["crop"][-1].day == last and got["result"][-1].day == last
-                           and sum(1 for m in got["status"] if m.level == DiagnosticStatus.WARN) >= 3,
+                           and sum(1 for m in got["status"] if m.fate == IrrigationStatus.CUT) >= 3,
                            TIMEOUT_S, "every day's PAW and step result, the farm terms and the cut reports")
     finally:
         assert process.stop() == 0, process.output()
@@ -208,12 +207,13 @@ def test_scenario_changes_at_reset_resize_everything(tmp_path):
     assert (paper_terms.quota_mm, paper_terms.capacity_mm_per_day) == (math.inf, 100.0)
     assert (tight_terms.event_cost_usd, tight_terms.quota_mm, tight_terms.capacity_mm_per_day) == (0.0, 10.0, 8.0)
 
-    # cut commands are reported (WARN) with the mm applied and why
-    cuts = [ri.status_values(m) | {"level": m.level} for m in got["status"] if m.level == DiagnosticStatus.WARN]
-    assert [(c["day"], c["irrigation_mm"], c["applied_mm"]) for c in cuts] == [(0.0, 20.0, 8.0), (1.0, 20.0, 2.0),
-                                                                              (2.0, 5.0, 0.0)]
-    assert "capacity" in cuts[0]["message"] and "quota" in cuts[1]["message"] and "quota" in cuts[2]["message"]
-    assert all(c["accepted"] for c in cuts)
+    # cut commands are reported (CUT) with the command, the mm applied and why, stamped with the day after
+    cuts = [m for m in got["status"] if m.fate == IrrigationStatus.CUT]
+    assert [(c.command.day, c.command.irrigation_mm, c.applied_mm, c.current_day) for c in cuts] == [
+        (0, 20.0, 8.0, 1), (1, 20.0, 2.0, 2), (2, 5.0, 0.0, 3)]
+    assert "capacity" in cuts[0].message and "quota" in cuts[1].message and "quota" in cuts[2].message
+    tight_sowing = date.fromisoformat(tight_run[0]["date"])
+    assert [c.header.stamp.sec for c in cuts] == [ri.sim_time(tight_sowing, day).sec for day in (1, 2, 3)]
 
     # ~/crop_state: PAW NaN (paw_observed false) exactly on the days the sensing task's reading is missing, else
     # the observation's PAW
@@ -347,15 +347,15 @@ def test_reacting_learned_agent_commands_the_offline_agents_amounts(tmp_path, qu
     try:
         with PrivateRos("learned_stepper") as ros:
             statuses = []
-            ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
-                                         lambda m: statuses.append(ri.status_values(m)), ri.READER_QOS)
+            ros.node.create_subscription(IrrigationStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}", statuses.append,
+                                         ri.READER_QOS)
             client = ros_support.connect(ros, name)
             client.reset(seed=8)
             applied = []
             for day in range(8):  # (a status of the previous season's day may still arrive: match the amount)
-                ros.spin_until(lambda: any(s["accepted"] and s["day"] == day and s["irrigation_mm"] == requested[day]
-                                           for s in statuses), 30, f"the agent's command of {requested[day]} mm "
-                               f"for day {day}")
+                ros.spin_until(lambda: any(s.fate == IrrigationStatus.ACCEPTED and s.command.day == day
+                                           and s.command.irrigation_mm == requested[day] for s in statuses), 30,
+                               f"the agent's command of {requested[day]} mm for day {day}")
                 applied.append(ros_support.raw_step(ros, name)["irrigation_mm"])
         assert applied == expected and any(applied), (applied, agent.output())
     finally:

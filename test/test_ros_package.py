@@ -208,16 +208,27 @@ def test_interface_package_is_ament_cmake_generating_every_interface_file():
     assert "crop_sim_interfaces" in depends
 
 
+# what a float field's comment names: a unit, the reward's unit, or a fraction's range
+UNIT_IN_COMMENT = re.compile(r"(\bmm\b|\bt ha-1|\bdegC\b|\bMJ m-2|\bppm\b|\bhPa\b|\bm s-1|\bUSD\b|\breward_unit\b|"
+                             r"\b0\.\.1\b)")
+
+
 def test_every_interface_field_is_documented_with_its_unit_or_meaning():
     """Each field line of every .msg/.srv/.action carries a comment (its unit, or what it means), except the
-    header and a few whose type says it all; float fields name their unit in the name or the comment."""
+    header; a float field's comment names its unit (mm, t ha-1, degC, ..., or reward_unit; a fraction 0..1);
+    a stamped message says what its header.stamp and header.frame_id are."""
     for path in interface_files():
-        for line in path.read_text().splitlines():
+        text = path.read_text()
+        if "std_msgs/Header header" in text:
+            assert "header.stamp" in text and "header.frame_id" in text, f"{path.name}: the header is not described"
+        for line in text.splitlines():
             field = line.split("#")[0].strip()
             if not field or field == "---" or field.startswith("std_msgs/Header"):
                 continue
             comment = line.partition("#")[2].strip()
             assert comment, f"{path.name}: {line!r} has no comment"
+            if re.match(r"float(32|64) ", field):  # a scalar float (the float32[] observation is the env's vector)
+                assert UNIT_IN_COMMENT.search(comment), f"{path.name}: {line!r} names no unit"
 
 
 def test_the_installed_interfaces_match_the_sources():

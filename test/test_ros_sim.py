@@ -20,10 +20,10 @@ import pytest
 
 
 import ros_support  # noqa: E402  (sets ROS_DOMAIN_ID / discovery range before any context exists)
-from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
-from crop_sim_interfaces.msg import CropState, Forecast, StepResult, Weather  # noqa: E402
-from std_msgs.msg import Float32MultiArray, Float64MultiArray  # noqa: E402
+from crop_sim_interfaces.msg import (CropState, Forecast, IrrigationCommand, IrrigationStatus, StepResult,  # noqa: E402
+                                     Weather)
+from std_msgs.msg import Float32MultiArray, Header  # noqa: E402
 
 from crop_agent_ros.ros.spin import PrivateRos, call  # noqa: E402
 from crop_agent_ros.ros.process import (NodeProcess, StillRunning, _shm_files_of, clean_dead_ports,  # noqa: E402
@@ -156,26 +156,36 @@ def test_bad_commands_are_rejected_and_never_applied(shared_sim, ros):
     client = connect(ros, name)
     client.reset(seed=11)
     episode = client.episode
-    statuses = []
-    status_sub = ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
-                                              lambda m: statuses.append(ri.status_values(m)), ri.READER_QOS)
-    publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation", ri.COMMAND_QOS)
+    statuses: list[IrrigationStatus] = []
+    status_sub = ros.node.create_subscription(IrrigationStatus, f"{name}/irrigation_status", statuses.append,
+                                              ri.READER_QOS)
+    publisher = ros.node.create_publisher(IrrigationCommand, f"{name}/irrigation", ri.COMMAND_QOS)
     ros.spin_until(lambda: publisher.get_subscription_count() >= 1 and status_sub.get_publisher_count() >= 1, 20,
                    "the simulator's command topics")
     client.step(5.0)  # day 0 -> 1, with an accepted command
-    bad = {"nan": [1.0, math.nan], "inf": [1.0, math.inf], "negative": [1.0, -1.0], "over": [1.0, 100.5],
-           "past": [0.0, 5.0], "future": [2.0, 5.0], "fraction": [1.5, 5.0], "short": [1.0],
-           "episode": [1.0, 5.0, float(episode - 1)], "long": [1.0, 5.0, float(episode), 9.0]}
-    for values in bad.values():
-        message = Float64MultiArray()
-        message.data = values
-        publisher.publish(message)
-    rejected = lambda: [s for s in statuses if not s["accepted"]]  # noqa: E731
+    day_1 = Header(stamp=ri.sim_time(client.sowing, 1), frame_id=client.field)
+    other_day, other_field = ri.sim_time(client.sowing, 2), "field3"
+
+    def command(day, mm, header=day_1, command_episode=episode):
+        return IrrigationCommand(header=header, day=day, irrigation_mm=mm, episode=command_episode)
+
+    bad = [  # (what the refusal says, the command)
+        ("not a finite", command(1, math.nan)), ("not a finite", command(1, math.inf)),
+        ("negative", command(1, -1.0)), ("exceeds", command(1, 100.5)), ("past", command(0, 5.0)),
+        ("future", command(2, 5.0)), ("episode", command(1, 5.0, command_episode=episode - 1)),
+        (f"frame_id '{other_field}' is not", command(1, 5.0, Header(stamp=day_1.stamp, frame_id=other_field))),
+        ("header.stamp", command(1, 5.0, Header(stamp=other_day, frame_id=client.field)))]
+    for _, sent in bad:
+        publisher.publish(sent)
+    rejected = lambda: [s for s in statuses if s.fate == IrrigationStatus.REFUSED]  # noqa: E731
     ros.spin_until(lambda: len(rejected()) >= len(bad), 10, "the status of every bad command")
-    assert len(rejected()) == len(bad) and [s["irrigation_mm"] for s in statuses if s["accepted"]] in ([], [5.0])
-    reasons = [s["message"] for s in rejected()]
-    for word in ("not a finite", "negative", "exceeds", "past", "future", "whole number", "expected", "episode"):
-        assert any(word in r for r in reasons), (word, reasons)
+    assert len(rejected()) == len(bad)
+    assert [s.command.irrigation_mm for s in statuses if s.fate == IrrigationStatus.ACCEPTED] in ([], [5.0])
+    for (word, sent), refusal in zip(bad, rejected()):  # one refusal each, in order, with the command as sent
+        assert word in refusal.message and refusal.message.startswith("rejected: "), (word, refusal.message)
+        assert (refusal.current_day, refusal.episode, refusal.header) == (1, episode, day_1)
+        assert refusal.command.header == sent.header and refusal.command.day == sent.day
+        assert math.isnan(refusal.applied_mm) and refusal.sequence > 0
     summary = raw_step(ros, name)  # nothing bad was applied on day 1: no command, 0 mm
     assert summary["success"] and summary["day"] == 2
     assert summary["irrigation_mm"] == 0.0 and summary["command_sequence"] == -1
@@ -325,7 +335,7 @@ def test_command_racing_step_is_applied_exactly_once_to_its_day(shared_sim):
         client.reset(seed=6)
         episode = client.episode
     n_steps = 60
-    acks: list[dict] = []
+    acks: list[IrrigationStatus] = []
     stop = threading.Event()
     errors = []
     current = {"day": 0}
@@ -333,19 +343,19 @@ def test_command_racing_step_is_applied_exactly_once_to_its_day(shared_sim):
     def commander():
         try:
             with PrivateRos(f"commander_{uuid.uuid4().hex[:6]}") as ros:
-                ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
-                                             lambda m: acks.append(ri.status_values(m)), ri.READER_QOS)
+                ros.node.create_subscription(IrrigationStatus, f"{name}/irrigation_status", acks.append,
+                                             ri.READER_QOS)
                 ros.node.create_subscription(StepResult, f"{name}/step_result",
                                              lambda m: current.__setitem__("day", m.day), ri.READER_QOS)
-                publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation", ri.COMMAND_QOS)
+                publisher = ros.node.create_publisher(IrrigationCommand, f"{name}/irrigation", ri.COMMAND_QOS)
                 ros.spin_until(lambda: publisher.get_subscription_count() >= 1, 20, "the command subscriber")
                 rng = np.random.default_rng(0)
                 sent = 0
                 while not stop.is_set():
-                    if not flowing.is_set() and any(a["accepted"] for a in acks):
+                    if not flowing.is_set() and any(a.fate == IrrigationStatus.ACCEPTED for a in acks):
                         flowing.set()  # commands are accepted and acknowledged: the stepper may start
                     day = current["day"] + int(rng.integers(0, 2))
-                    publisher.publish(ri.irrigation_command(day, float(rng.integers(1, 100))))
+                    publisher.publish(IrrigationCommand(day=day, irrigation_mm=float(rng.integers(1, 100))))
                     sent += 1
                     # the next command once this one is answered: one in flight, racing the steps. (The simulator
                     # keeps every command: sent faster than it takes them, they would queue and all come late.)
@@ -374,24 +384,24 @@ def test_command_racing_step_is_applied_exactly_once_to_its_day(shared_sim):
     assert not errors, errors
     rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == episode]
     assert [int(r["day"]) for r in rows] == list(range(n_steps))
-    accepted = [a for a in acks if a["accepted"]]
+    accepted = [a for a in acks if a.fate == IrrigationStatus.ACCEPTED]
     assert accepted, "some commands were accepted"
-    assert any(not a["accepted"] and ("past" in a["message"] or "future" in a["message"]) for a in acks)
-    by_sequence = {a["sequence"]: a for a in acks}
+    assert any(a.fate == IrrigationStatus.REFUSED and ("past" in a.message or "future" in a.message) for a in acks)
+    by_sequence = {a.sequence: a for a in acks}
     applied_sequences = [int(r["command_sequence"]) for r in rows if int(r["command_sequence"]) >= 0]
     assert len(applied_sequences) == len(set(applied_sequences)), "no command applied twice"
     applied_days = 0
     for row in rows:
         day, sequence, mm = int(row["day"]), int(row["command_sequence"]), float(row["irrigation_mm"])
-        for_day = [a for a in accepted if a["day"] == day and a["sequence"] > 0]
+        for_day = [a for a in accepted if a.command.day == day and a.sequence > 0]
         if sequence < 0:
             assert mm == 0.0 and not for_day, row
             continue
         applied_days += 1
         ack = by_sequence.get(sequence)
         if ack is not None:  # the ack of the applied command: accepted, for this very day, same amount
-            assert ack["accepted"] and ack["day"] == day and ack["irrigation_mm"] == mm
-        assert all(a["sequence"] <= sequence for a in for_day), "the latest accepted command of the day"
+            assert ack.fate == IrrigationStatus.ACCEPTED and ack.command.day == day and ack.command.irrigation_mm == mm
+        assert all(a.sequence <= sequence for a in for_day), "the latest accepted command of the day"
     assert applied_days >= 5, "the race was exercised"
 
 
@@ -530,22 +540,21 @@ def test_stepping_commands_step_once_and_only_their_day(shared_sim, ros):
     client.reset(seed=13)
     episode = client.episode
     statuses, results = [], []
-    status_sub = ros.node.create_subscription(DiagnosticStatus, f"{name}/irrigation_status",
-                                              lambda m: statuses.append(ri.status_values(m)), ri.READER_QOS)
+    status_sub = ros.node.create_subscription(IrrigationStatus, f"{name}/irrigation_status", statuses.append,
+                                              ri.READER_QOS)
     result_sub = ros.node.create_subscription(StepResult, f"{name}/step_result", results.append, ri.READER_QOS)
-    publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/irrigation_step", ri.COMMAND_QOS)
+    publisher = ros.node.create_publisher(IrrigationCommand, f"{name}/irrigation_step", ri.COMMAND_QOS)
     ros.spin_until(lambda: publisher.get_subscription_count() >= 1 and status_sub.get_publisher_count() >= 1
                    and result_sub.get_publisher_count() >= 1, 20, "the simulator's topics")
     for _ in range(5):  # the same stepping command five times
-        publisher.publish(ri.irrigation_command(0, 4.0, episode))
-    ros.spin_until(lambda: len([s for s in statuses if not s["accepted"]]) >= 4 and results, 10, "the outcome")
+        publisher.publish(IrrigationCommand(day=0, irrigation_mm=4.0, episode=episode))
+    refused = lambda: [s for s in statuses if s.fate == IrrigationStatus.REFUSED]  # noqa: E731
+    ros.spin_until(lambda: len(refused()) >= 4 and results, 10, "the outcome")
     assert [r.day for r in results] == [1] and results[0].irrigation_mm == 4.0 and results[0].command_sequence > 0
-    assert all("past" in s["message"] for s in statuses if not s["accepted"])
-    for values in ([1.0, math.nan, float(episode)], [1.0, 150.0, float(episode)], [3.0, 1.0, float(episode)]):
-        message = Float64MultiArray()
-        message.data = values
-        publisher.publish(message)
-    ros.spin_until(lambda: len([s for s in statuses if not s["accepted"]]) >= 7, 10, "three more refusals")
+    assert all("past" in s.message for s in refused()) and len(statuses) == 4, "no ACCEPTED for a stepping command"
+    for day, mm in ((1, math.nan), (1, 150.0), (3, 1.0)):
+        publisher.publish(IrrigationCommand(day=day, irrigation_mm=mm, episode=episode))
+    ros.spin_until(lambda: len(refused()) >= 7, 10, "three more refusals")
     assert [r.day for r in results] == [1], "no step for a bad command"
     rows = [r for r in ros_support.read_log(log) if int(r["episode"]) == episode]
     assert [(int(r["day"]), float(r["irrigation_mm"])) for r in rows] == [(0, 4.0)]
@@ -569,7 +578,7 @@ def test_typed_step_and_reset_requests(shared_sim, ros):
     episode = answer.terms.episode
     assert np.asarray(answer.observation, np.float32)[ri.OBS_DAY] == 0.0
     for request, why in ((Step.Request(irrigation_mm=1.0, day=1), "day 1 is in the future"),
-                         (Step.Request(irrigation_mm=1.0, episode=episode + 1), f"episode {float(episode + 1)!r}"),
+                         (Step.Request(irrigation_mm=1.0, episode=episode + 1), f"episode {episode + 1} is not"),
                          (Step.Request(irrigation_mm=-1.0), "negative")):
         refused = call(ros.executor, step, request)
         assert not refused.success and why in refused.message, refused.message

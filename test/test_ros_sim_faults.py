@@ -8,6 +8,7 @@ Every node runs as its own process on this test process's private ROS_DOMAIN_ID 
 from __future__ import annotations
 
 import csv
+import os
 import resource
 import shutil
 import signal
@@ -25,10 +26,9 @@ import pytest
 
 import ros_support  # noqa: E402  (sets ROS_DOMAIN_ID / discovery range before any context exists)
 import rclpy.parameter  # noqa: E402
-from diagnostic_msgs.msg import DiagnosticStatus  # noqa: E402
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: E402
 import rosgraph_msgs.msg  # noqa: E402
-from std_msgs.msg import Float64MultiArray  # noqa: E402
+from crop_sim_interfaces.msg import IrrigationCommand, IrrigationStatus  # noqa: E402
 
 from crop_agent_ros.ros.spin import PrivateRos  # noqa: E402
 from crop_agent_ros.ros.process import isolated_ros_env  # noqa: E402
@@ -85,6 +85,16 @@ def whole_rows(path: Path) -> list[list[str]]:
 
 
 # --- the command line ----------------------------------------------------------------------------------------
+
+def test_a_child_process_imports_this_checkout(tmp_path):
+    """isolated_ros_env puts the repository (the folder holding crop_sim_ros) first on a child's PYTHONPATH, so a
+    node started from a checkout or a git worktree runs that tree's code, not the editable install's."""
+    env = isolated_ros_env(base={k: v for k, v in os.environ.items() if k != "PYTHONPATH"})
+    assert env["PYTHONPATH"].split(os.pathsep)[0] == str(ros_support.REPO)
+    done = subprocess.run([sys.executable, "-c", "import crop_sim_ros; print(crop_sim_ros.__file__)"], env=env,
+                          cwd=tmp_path, capture_output=True, text=True, timeout=60)
+    assert done.stdout.strip() == str(ros_support.REPO / "crop_sim_ros" / "__init__.py"), done.stderr
+
 
 def test_help_prints_the_parameters_and_starts_nothing(tmp_path):
     env = {**isolated_ros_env(), "ROS_HOME": str(tmp_path / "ros_home")}  # where a started node would log
@@ -561,16 +571,16 @@ def test_a_burst_of_commands_is_queued_not_dropped_and_counted(sim, ros):
     ros.spin_until(lambda: statuses[-1]["episode"] == client.episode, 10, "the status of the new season")
     received_before = statuses[-1]["commands_received"]
     answers = []
-    answer_sub = ros.node.create_subscription(DiagnosticStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
-                                              lambda m: answers.append(ri.status_values(m)), ri.COMMAND_SUBSCRIPTION_QOS)
-    publisher = ros.node.create_publisher(Float64MultiArray, f"{name}/{ri.IRRIGATION_TOPIC}",
+    answer_sub = ros.node.create_subscription(IrrigationStatus, f"{name}/{ri.IRRIGATION_STATUS_TOPIC}",
+                                              answers.append, ri.COMMAND_SUBSCRIPTION_QOS)
+    publisher = ros.node.create_publisher(IrrigationCommand, f"{name}/{ri.IRRIGATION_TOPIC}",
                                           ri.COMMAND_SUBSCRIPTION_QOS)
     ros.spin_until(lambda: publisher.get_subscription_count() >= 1 and answer_sub.get_publisher_count() >= 1, 20,
                    "the command topics")
     n = 1000
     amounts = [float(i % 97) for i in range(n)]
     for mm in amounts:
-        publisher.publish(ri.irrigation_command(0, mm, client.episode))
+        publisher.publish(IrrigationCommand(day=0, irrigation_mm=mm, episode=client.episode))
     try:
         ros.spin_until(lambda: statuses[-1]["commands_received"] >= received_before + n, 30, "every command counted")
     except TimeoutError:
@@ -578,7 +588,8 @@ def test_a_burst_of_commands_is_queued_not_dropped_and_counted(sim, ros):
     status = statuses[-1]
     assert status["commands_received"] == received_before + n, (status["commands_received"] - received_before, status)
     ros.spin_until(lambda: len(answers) >= n, 30, "an answer to every command")
-    assert [a["sequence"] for a in answers] == list(range(received_before + 1, received_before + n + 1))
-    assert all(a["accepted"] for a in answers) and [a["irrigation_mm"] for a in answers] == amounts
+    assert [a.sequence for a in answers] == list(range(received_before + 1, received_before + n + 1))
+    assert all(a.fate == IrrigationStatus.ACCEPTED for a in answers)
+    assert [a.command.irrigation_mm for a in answers] == amounts
     summary = raw_step(ros, name)
     assert summary["irrigation_mm"] == amounts[-1] and summary["command_sequence"] == received_before + n

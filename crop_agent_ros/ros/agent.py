@@ -11,8 +11,8 @@ from crop_sim_interfaces.action import RunSeason
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 from rclpy.action import ActionServer
 from rclpy.node import Node
-from diagnostic_msgs.msg import DiagnosticStatus
-from std_msgs.msg import Float32MultiArray, Float64MultiArray
+from crop_sim_interfaces.msg import IrrigationCommand, IrrigationStatus, StepResult
+from std_msgs.msg import Float32MultiArray
 
 from crop_sim_ros import ros_interface as ri
 from crop_sim_ros.simulate import is_scenario_path
@@ -146,11 +146,16 @@ class AgentNode(Node):
         if not self.drive_mode:  # react from now on (the policy is built)
             self.policy.reset(None)
             self._pending: tuple[int, float] | None = None  # today's command until the simulator accepts it
-            self._command = self.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_TOPIC}",
+            self._today: StepResult | None = None  # the simulator's latest day: its farm time, field and episode
+            self._command = self.create_publisher(IrrigationCommand, f"{self.sim}/{ri.IRRIGATION_TOPIC}",
                                                   ri.COMMAND_QOS)
+            # created before the observation's: the executor takes ready subscriptions in creation order, so a
+            # day's StepResult (published with its observation) is usually there when the observation arrives
+            self.create_subscription(StepResult, f"{self.sim}/{ri.STEP_RESULT_TOPIC}", self._on_step_result,
+                                     ri.LATCHED_READER_QOS)
             self.create_subscription(Float32MultiArray, f"{self.sim}/{ri.OBSERVATION_TOPIC}", self._on_observation,
                                      ri.LATCHED_READER_QOS)
-            self.create_subscription(DiagnosticStatus, f"{self.sim}/{ri.IRRIGATION_STATUS_TOPIC}", self._on_status,
+            self.create_subscription(IrrigationStatus, f"{self.sim}/{ri.IRRIGATION_STATUS_TOPIC}", self._on_status,
                                      ri.COMMAND_QOS)
             # a command published before the simulator's subscription matched is lost: repeat it until accepted
             self.create_timer(0.2, self._repeat_pending)
@@ -169,20 +174,28 @@ class AgentNode(Node):
         self._publish_pending()
         self.get_logger().debug(f"day {day}: {mm:.2f} mm")
 
-    def _publish_pending(self) -> None:
-        if self._pending is not None:
-            self._command.publish(ri.irrigation_command(*self._pending))
-            self.commands_sent += 1
+    def _on_step_result(self, message: StepResult) -> None:
+        self._today = message
+        self._publish_pending()
 
-    def _on_status(self, message: DiagnosticStatus) -> None:
-        status = ri.status_values(message)
-        if self._pending is None or status["day"] != self._pending[0]:
+    def _publish_pending(self) -> None:
+        """Today's command, stamped with the day's farm time, addressed to the field and valid in this episode
+        only, as the simulator's StepResult of that day says; until it arrives, the command waits."""
+        today = self._today
+        if self._pending is None or today is None or today.day != self._pending[0]:
             return
-        if status["accepted"] and status["irrigation_mm"] == self._pending[1]:
-            self._pending = None
-        elif not status["accepted"] and status["irrigation_mm"] == self._pending[1]:
-            self.get_logger().warning(f"command for day {status['day']:g} rejected: {status['message']}")
-            self._pending = None
+        day, mm = self._pending
+        self._command.publish(IrrigationCommand(header=today.header, day=day, irrigation_mm=mm,
+                                                episode=today.episode))
+        self.commands_sent += 1
+
+    def _on_status(self, status: IrrigationStatus) -> None:
+        command = status.command
+        if self._pending != (command.day, command.irrigation_mm):
+            return
+        if status.fate == IrrigationStatus.REFUSED:
+            self.get_logger().warning(f"command for day {command.day} rejected: {status.message}")
+        self._pending = None
 
     def _repeat_pending(self) -> None:
         if self._pending is not None and self._command.get_subscription_count() > 0:

@@ -9,8 +9,10 @@ Two ways of working:
 
 - reactive (``drive: false``, the default): for every observation the simulator publishes
   (``<sim_node>/observation``; transient-local, so a late start still sees the current day), the node
-  publishes the policy's irrigation for that day on ``<sim_node>/irrigation``, repeating it every 0.2 s
-  until ``<sim_node>/irrigation_status`` reports it accepted (or rejected). Whoever steps the
+  publishes the policy's irrigation for that day on ``<sim_node>/irrigation`` (an IrrigationCommand stamped
+  with the day's farm time, addressed to the field and valid in the current episode, all three taken from
+  the day's ``<sim_node>/step_result``), repeating it every 0.2 s until ``<sim_node>/irrigation_status``
+  reports it accepted (or rejected). Whoever steps the
   simulator (a user with ``ros2 service call``, or the simulator itself with ``mode:=free_running``)
   decides when days pass. The reactive node also serves the action ``~/run_season``
   (``crop_sim_interfaces/action/RunSeason``): a goal (scenario, seed, policy; '' = the simulator's scenario,

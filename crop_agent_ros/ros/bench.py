@@ -7,7 +7,8 @@ private ROS_DOMAIN_ID):
 
 1. bare std_srvs/Trigger round trip: a client in this process (call_async + its own spin_once loop)
    against a trivial server in a child process;
-2. bare topic ping-pong: std_msgs/Float64MultiArray out, echoed back by the child;
+2. bare topic ping-pong: the day's command message (crop_sim_interfaces/msg/IrrigationCommand) out, echoed
+   back by the child;
 3. whole seasons through the Gymnasium bridge (``RosIrrigationEnv``) against a ``sim_node`` child, both
    ways: ``via="topic"`` (the default: a stepping command on ``~/irrigation_step``, answered on
    ``~/step_result`` and ``~/observation``) and ``via="service"`` (the typed ``~/step`` service,
@@ -47,15 +48,15 @@ def serve_baseline() -> int:
     """Child: a Trigger server and a topic echo, until SIGINT."""
     import rclpy
     from rclpy.executors import ExternalShutdownException
+    from crop_sim_interfaces.msg import IrrigationCommand
     from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from std_msgs.msg import Float64MultiArray
     from std_srvs.srv import Trigger
 
     rclpy.init()
     node = rclpy.create_node(BASE_NAME)
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-    pong = node.create_publisher(Float64MultiArray, "bench_pong", qos)
-    node.create_subscription(Float64MultiArray, "bench_ping", pong.publish, qos)
+    pong = node.create_publisher(IrrigationCommand, "bench_pong", qos)
+    node.create_subscription(IrrigationCommand, "bench_ping", pong.publish, qos)
 
     def trigger(request, response):
         response.success = True
@@ -84,8 +85,8 @@ class Baselines:
     """The bare baselines' peer process and this process's client, connected once (a context manager)."""
 
     def __init__(self, warmup: int = 200):
+        from crop_sim_interfaces.msg import IrrigationCommand
         from rclpy.qos import QoSProfile, ReliabilityPolicy
-        from std_msgs.msg import Float64MultiArray
         from std_srvs.srv import Trigger
 
         from .spin import PrivateRos, wait_for_service, wait_for_subscribers
@@ -99,11 +100,11 @@ class Baselines:
             self.request = Trigger.Request()
             qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
             self.received = []
-            self.ros.node.create_subscription(Float64MultiArray, "bench_pong", self.received.append, qos)
-            self.ping = self.ros.node.create_publisher(Float64MultiArray, "bench_ping", qos)
+            self.ros.node.create_subscription(IrrigationCommand, "bench_pong", self.received.append, qos)
+            self.ping = self.ros.node.create_publisher(IrrigationCommand, "bench_ping", qos)
             wait_for_subscribers(self.ros.executor, self.ping, timeout=20)
             self.ros.spin_until(lambda: self.ros.node.count_publishers("bench_pong") >= 1, 20, "the pong publisher")
-            self.message = Float64MultiArray()
+            self.message = IrrigationCommand(irrigation_mm=5.0)  # its day: the ping's sequence number
             # discovery of the reverse direction: ping until the first pong comes back
             self.ros.spin_until(lambda: (self.ping.publish(self.message), bool(self.received))[1], 20,
                                 "the first pong")
@@ -128,12 +129,12 @@ class Baselines:
         times = []
         for _ in range(calls):
             self._sequence += 1
-            value = float(self._sequence)
+            sequence = self._sequence
             self.received.clear()
-            self.message.data = [value]
+            self.message.day = sequence
             t0 = time.perf_counter()
             self.ping.publish(self.message)
-            self.ros.spin_until(lambda: any(len(m.data) and m.data[0] == value for m in self.received), 10, "a pong")
+            self.ros.spin_until(lambda: any(m.day == sequence for m in self.received), 10, "a pong")
             times.append(time.perf_counter() - t0)
         return times
 

@@ -30,7 +30,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parents[2]  # the folder holding crop_sim_ros/ and crop_agent_ros/
 SHM = Path("/dev/shm")
 
 

@@ -5,9 +5,10 @@ the caller's node and executor (one thread; no background spinning), with ``call
 ``spin_once`` loop.
 
 ``via="topic"`` (the default; one round trip per day):
-    publish ``[day, mm, episode]`` on ``<sim>/irrigation_step``; the simulator validates the command, applies
-    it and steps at once; the client waits for ``<sim>/step_result`` and ``<sim>/observation`` of the new day
-    (float32 observation and float64 reward, exactly). A refusal arrives on ``<sim>/irrigation_status``.
+    publish an IrrigationCommand (day, mm, episode; stamped with the day's farm time and addressed to the field,
+    both from the reset reply's FarmTerms) on ``<sim>/irrigation_step``; the simulator validates the command,
+    applies it and steps at once; the client waits for ``<sim>/step_result`` and ``<sim>/observation`` of the
+    new day (float32 observation and float64 reward, exactly). A refusal arrives on ``<sim>/irrigation_status``.
     The day is named in the command, so a repeated message can never step twice (it would be for a past day).
 
 ``via="service"`` (the typed service any client can use; one round trip per day):
@@ -37,16 +38,15 @@ import math
 import os
 import time
 from collections import deque
+from datetime import date
 from pathlib import Path
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
-from crop_sim_interfaces.msg import StepResult
+from crop_sim_interfaces.msg import IrrigationCommand, IrrigationStatus, StepResult
 from crop_sim_interfaces.srv import Reset, Step
-from std_msgs.msg import Float32MultiArray
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float32MultiArray, Header
 
 from crop_sim_ros import ros_interface as ri
 from crop_sim_ros.task.layout import PAPER, ObservationLayout, layout_of_size
@@ -94,11 +94,10 @@ class SimClient:
         self._reset = node.create_client(Reset, f"{self.sim}/{ri.RESET_SERVICE}", qos_profile=ri.SERVICE_CLIENT_QOS)
         self._set_parameters = node.create_client(SetParameters, f"{self.sim}/set_parameters")
         self._get_parameters = node.create_client(GetParameters, f"{self.sim}/get_parameters")
-        self._command = node.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_TOPIC}", ri.COMMAND_QOS)
-        self._message = ri.irrigation_command(0, 0.0, 0)  # reused: publish() serialises at once
-        self._acks: deque[dict] = deque(maxlen=1000)
-        self._status = node.create_subscription(DiagnosticStatus, f"{self.sim}/{ri.IRRIGATION_STATUS_TOPIC}",
-                                                lambda m: self._acks.append(ri.status_values(m)), ri.COMMAND_QOS)
+        self._command = node.create_publisher(IrrigationCommand, f"{self.sim}/{ri.IRRIGATION_TOPIC}", ri.COMMAND_QOS)
+        self._acks: deque[IrrigationStatus] = deque(maxlen=1000)
+        self._status = node.create_subscription(IrrigationStatus, f"{self.sim}/{ri.IRRIGATION_STATUS_TOPIC}",
+                                                lambda m: self._acks.append(m), ri.COMMAND_QOS)
         self._topic_obs: deque[np.ndarray] = deque(maxlen=100)
         self._results: deque[StepResult] = deque(maxlen=100)
         self._obs_sub = self._result_sub = None
@@ -107,7 +106,7 @@ class SimClient:
                 Float32MultiArray, f"{self.sim}/{ri.OBSERVATION_TOPIC}",
                 lambda m: self._topic_obs.append(ri.observation_from_message(m)), ri.READER_QOS)
         if via == "topic":
-            self._step_command = node.create_publisher(Float64MultiArray, f"{self.sim}/{ri.IRRIGATION_STEP_TOPIC}",
+            self._step_command = node.create_publisher(IrrigationCommand, f"{self.sim}/{ri.IRRIGATION_STEP_TOPIC}",
                                                        ri.COMMAND_QOS)
             self._result_sub = node.create_subscription(StepResult, f"{self.sim}/{ri.STEP_RESULT_TOPIC}",
                                                         lambda m: self._results.append(m), ri.READER_QOS)
@@ -120,6 +119,8 @@ class SimClient:
         self.limited = False  # the season's capacity or quota may cut a command (from the reset's farm terms)
         self.last_response: dict = {}
         self.last_result = StepResult()  # of the latest step
+        self.sowing = date(1970, 1, 1)  # the season's sowing date: farm time of day 0 (from the reset's terms)
+        self.field = ""  # the simulator's field (its messages' frame_id; '' before a reset: any)
         self.retries = 0
 
     # --- connection --------------------------------------------------------------------------------------
@@ -201,6 +202,7 @@ class SimClient:
         response = self._call(self._reset, Reset.Request(seed=requested(seed), weather_season=requested(weather_season)))
         summary = ri.reset_summary(response.terms, response.observation)
         self.last_response = summary
+        self.sowing, self.field = date.fromisoformat(response.terms.sowing_date), response.terms.header.frame_id
         self.episode, self.day, self.ended = summary["episode"], summary["day"], False
         self.max_irrigation_mm = float(summary.get("max_irrigation_mm", math.inf))
         terms = summary.get("farm_terms") or {}
@@ -234,8 +236,7 @@ class SimClient:
 
     def _step_by_topic(self, mm: float):
         day, episode = self.day, self.episode
-        message = self._message
-        ri.IRRIGATION.fill(message, ri.IrrigationCommand(day, mm, episode))
+        message = self._today_command(mm)
         self._acks.clear()
         self._results.clear()
         self._topic_obs.clear()
@@ -255,8 +256,8 @@ class SimClient:
             if "result" in found and "obs" in found:
                 return True
             for ack in self._acks:  # refused (another client stepped, the season ended, a bad amount ...)
-                if not ack["accepted"] and ack["day"] == day and ack["irrigation_mm"] == mm and "result" not in found:
-                    raise SimError(f"{self.sim} refused {mm} mm and a step for day {day}: {ack['message']}")
+                if ack.fate == IrrigationStatus.REFUSED and ack.command == message and "result" not in found:
+                    raise SimError(f"{self.sim} refused {mm} mm and a step for day {day}: {ack.message}")
             return False
 
         deadline = time.monotonic() + self.timeout
@@ -284,16 +285,20 @@ class SimClient:
         if applied != mm and not (self.limited and 0.0 <= applied < mm):
             raise SimError(f"{self.sim}: day {day} was irrigated {applied} mm, not {mm} mm")
 
-    def command(self, mm: float) -> dict:
+    def _today_command(self, mm: float) -> IrrigationCommand:
+        """``mm`` for today, in this season only, stamped with today's farm time and addressed to the field."""
+        today = Header(stamp=ri.sim_time(self.sowing, self.day), frame_id=self.field)
+        return IrrigationCommand(header=today, day=self.day, irrigation_mm=mm, episode=self.episode)
+
+    def command(self, mm: float) -> IrrigationStatus:
         """Publish today's command and wait until the simulator has accepted it; returns its status."""
-        message = self._message
-        ri.IRRIGATION.fill(message, ri.IrrigationCommand(self.day, mm, self.episode))
+        message = self._today_command(mm)
         self._acks.clear()
         deadline = time.monotonic() + self.timeout
         while True:
             self._command.publish(message)
             try:
-                spin_until(self.executor, lambda: self._find_ack(mm) is not None,
+                spin_until(self.executor, lambda: self._find_ack(message) is not None,
                            min(self.ack_timeout, max(0.01, deadline - time.monotonic())), what="an acknowledgement")
             except ServiceTimeout:
                 if time.monotonic() > deadline:
@@ -301,16 +306,14 @@ class SimClient:
                                          f"{self.day} within {self.timeout:.1f} s") from None
                 self.retries += 1
                 continue
-            ack = self._find_ack(mm)
-            if not ack["accepted"]:
-                raise SimError(f"{self.sim} rejected {mm} mm for day {self.day}: {ack['message']}")
+            ack = self._find_ack(message)
+            if ack.fate == IrrigationStatus.REFUSED:
+                raise SimError(f"{self.sim} rejected {mm} mm for day {self.day}: {ack.message}")
             return ack
 
-    def _find_ack(self, mm: float) -> dict | None:
-        for ack in self._acks:
-            if ack["day"] == self.day and ack["irrigation_mm"] == mm:
-                return ack
-        return None
+    def _find_ack(self, message: IrrigationCommand) -> IrrigationStatus | None:
+        """The simulator's answer to ``message`` (the first, if it was sent more than once)."""
+        return next((ack for ack in self._acks if ack.command == message), None)
 
     def _call_idempotent(self, client, request, attempts: int = 4):
         """A call that may be repeated: DDS can lose a request sent right after discovery (the server's reader

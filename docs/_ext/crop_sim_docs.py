@@ -378,21 +378,13 @@ class DocstringTablesDirective(SphinxDirective):
 # --- ROS ---------------------------------------------------------------------------------------------------
 
 class RosTopicsDirective(SphinxDirective):
-    """The simulator node's topics and services (``crop_sim_ros.ros_interface``'s table) and each array's
-    labels, from the codecs."""
+    """The simulator node's topics and services (``crop_sim_ros.ros_interface``'s table)."""
 
     def run(self):
         from crop_sim_ros import ros_interface as ri
 
         header, rows = loose_simple_table(ri.__doc__)
-        lines = table(header, [[cell.replace("``", "`") for cell in row] for row in rows])
-        codecs = {name: value for name, value in vars(ri).items() if isinstance(value, ri.ArrayCodec)}
-        lines += ["Each `Float64MultiArray` carries its labels (`name[unit]`) in its layout. The layouts, "
-                  "declared once as typed records in `crop_sim_ros/ros_interface.py`:", ""]
-        lines += table(["codec", "record", "labels"],
-                       [[f"`{name}`", f"`{codec.record.__name__}`", ", ".join(f"`{label}`" for label in codec.labels)]
-                        for name, codec in codecs.items()])
-        return parse_markdown(self, lines)
+        return parse_markdown(self, table(header, [[cell.replace("``", "`") for cell in row] for row in rows]))
 
 
 class RosParametersDirective(SphinxDirective):
