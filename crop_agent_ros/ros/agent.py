@@ -193,6 +193,10 @@ class AgentNode(Node):
         command = status.command
         if self._pending != (command.day, command.irrigation_mm):
             return
+        if status.fate == IrrigationStatus.REFUSED and command.episode != status.episode:
+            # sent with the last season's StepResult (the new one not yet read, as after two resets): it goes
+            # again, in the new episode, when that StepResult arrives
+            return
         if status.fate == IrrigationStatus.REFUSED:
             self.get_logger().warning(f"command for day {command.day} rejected: {status.message}")
         self._pending = None
