@@ -106,7 +106,6 @@ from datetime import date, datetime, timezone
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rosgraph_msgs.msg import Clock
 from crop_sim_interfaces.msg import (CropState, FarmTerms, Forecast, IrrigationCommand, IrrigationStatus, StepResult,
                                      Weather)
 from std_msgs.msg import Float32MultiArray, Header, MultiArrayDimension
@@ -308,10 +307,6 @@ def observation_layout(message) -> ObservationLayout:
 def sim_time(sowing: date, day: int) -> Time:
     """Farm time of ``day``: midnight UTC of the sowing date plus ``day`` days."""
     return Time(sec=farm_time_ns(sowing, day) // 10**9, nanosec=0)
-
-
-def clock_message(sowing: date, day: int) -> Clock:
-    return Clock(clock=sim_time(sowing, day))
 
 
 def command_of(message: IrrigationCommand) -> Command:
