@@ -76,12 +76,11 @@ PACED_NEVER = {"skip_rain_mm": 1e6, "pace": 1e6, "memory_degc_d": 1e6}
 class SearchSpace:
     """A named search space of a rule family, chosen before tuning from what the rule should not rely on (never
     from a held-out score): ``box`` replaces or adds (low, high) bounds of the family's box, ``fixed`` holds
-    parameters at a value (not searched), ``never`` (if given) replaces the family's "never" values."""
+    parameters at a value (not searched)."""
 
     description: str
     box: dict = field(default_factory=dict)
     fixed: dict = field(default_factory=dict)
-    never: dict | None = None
 
 
 FULL = "full"
@@ -117,7 +116,7 @@ class RuleFamily:
         if name not in self.spaces:
             raise ValueError(f"--space: unknown search space {name!r} of {self.name}; known: {', '.join(self.spaces)}")
         space = self.spaces[name]
-        return {**self.box, **space.box}, self.never if space.never is None else space.never, dict(space.fixed)
+        return {**self.box, **space.box}, self.never, dict(space.fixed)
 
 
 RULES = {
@@ -333,8 +332,10 @@ def run(args) -> int:
     if rule not in RULES:
         raise UsageError(f"--rule: unknown rule {rule!r}; known: {', '.join(RULES)}")
     space = getattr(args, "space", FULL)
-    if space not in RULES[rule].spaces:
-        raise UsageError(f"--space: unknown search space {space!r} of {rule}; known: {', '.join(RULES[rule].spaces)}")
+    try:
+        RULES[rule].space(space)  # the one check of a space's name
+    except ValueError as error:
+        raise UsageError(str(error)) from None
     result = tune_rule(scenario, seasons, args.seed, args.candidates, args.rounds, rule=rule, term_draws=term_draws,
                        space=space)
     print(f"tuned {args.task} {rule}: {result['parameters']} mean return {result['mean_return']:.2f}; "
