@@ -103,26 +103,27 @@ def test_the_jax_population_returns_are_the_numpy_populations_without_noise():
     assert np.ptp(numpy_episodes.episode_return.reshape(3, 4), axis=0).max() > 100  # the candidates differ
 
 
-def _noisy_rollout_returns(candidates: int):
-    """(returns, days) (P, 3) of ``candidates`` copies of one network on 3 seasons of the noisy task."""
+def _noisy_rollout():
+    """(rollout, actor, scenario): the JAX rollout of a fresh network on the noisy task."""
     scenario = get_scenario(TASK)
     actor = _actor()
-    rollout = PopulationRollout(scenario, AgentInterface(_scaler(scenario)), actor)
-    seasons, terms = generation_seasons(np.random.default_rng(1), scenario, 3)
+    return PopulationRollout(scenario, AgentInterface(_scaler(scenario)), actor), actor, scenario
+
+
+def _rollout_arguments(thetas, scenario) -> tuple:
+    """The rollout's arguments: ``thetas`` (P, size) on 3 seasons of ``scenario`` with their terms, key 0."""
     from crop_sim_ros.task import core
-    thetas = jax.numpy.asarray(np.tile(actor.get(), (candidates, 1)))
-    return jax.jit(rollout)(thetas, jax.numpy.asarray(seasons), core.EpisodeTerms(**terms), jax.random.key(0))
+    seasons, terms = generation_seasons(np.random.default_rng(1), scenario, 3)
+    return jax.numpy.asarray(thetas), jax.numpy.asarray(seasons), core.EpisodeTerms(**terms), jax.random.key(0)
 
 
 def test_the_observation_noise_is_common_to_the_candidates():
     """Candidates with the same network on the same season see the same noisy observations (common random
     numbers), so they return the same; the noise is drawn (other keys, other returns)."""
-    returns, days = _noisy_rollout_returns(3)
+    rollout, actor, scenario = _noisy_rollout()
+    returns, days = jax.jit(rollout)(*_rollout_arguments(np.tile(actor.get(), (3, 1)), scenario))
     np.testing.assert_array_equal(returns[1:], np.broadcast_to(returns[0], (2, 3)))
     np.testing.assert_array_equal(days[1:], np.broadcast_to(days[0], (2, 3)))
-    scenario = get_scenario(TASK)
-    actor = _actor()
-    rollout = PopulationRollout(scenario, AgentInterface(_scaler(scenario)), actor)
     noises = [rollout._noise(jax.random.key(k), 2, 3) for k in (0, 1)]
     assert noises[0].shape == (6, rollout.env.task.noise_columns)
     np.testing.assert_array_equal(noises[0][:3], noises[0][3:])
@@ -134,16 +135,9 @@ import jax, numpy as np
 jax.config.update("jax_num_cpu_devices", 2)
 with jax.enable_x64(True):
     import test_jax_evolution as t
-    from crop_agent_ros.learning.jax_evolution import PopulationRollout, candidates_split
-    from crop_agent_ros.policies.learned import AgentInterface
-    from crop_agent_ros.learning.evolution import generation_seasons
-    from crop_sim_ros.task import core, get_scenario
-    scenario = get_scenario(t.TASK)
-    actor = t._actor()
-    rollout = PopulationRollout(scenario, AgentInterface(t._scaler(scenario)), actor)
-    thetas = jax.numpy.asarray(actor.get() + np.random.default_rng(3).normal(0, 0.3, (4, actor.size)))
-    seasons, terms = generation_seasons(np.random.default_rng(1), scenario, 3)
-    args = (thetas, jax.numpy.asarray(seasons), core.EpisodeTerms(**terms), jax.random.key(0))
+    from crop_agent_ros.learning.jax_evolution import candidates_split
+    rollout, actor, scenario = t._noisy_rollout()
+    args = t._rollout_arguments(actor.get() + np.random.default_rng(3).normal(0, 0.3, (4, actor.size)), scenario)
     split, parts = candidates_split(rollout, 4)
     assert parts == 2 and len(jax.devices()) == 2
     (one, days_one), (two, days_two) = jax.jit(rollout)(*args), jax.jit(split)(*args)
