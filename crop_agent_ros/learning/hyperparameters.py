@@ -85,9 +85,11 @@ class PaperPPO(GradientSettings, Recipe):
 
 class FamilyRecipe(Recipe):
     """A family task's agent: the normalised raw observation, action in mm (:mod:`.agent`); ``paw_filter``: the
-    network also sees a soil-water filter's PAW estimate (the sensor's stated error known)."""
+    network also sees a soil-water filter's PAW estimate (the sensor's stated error known); ``residual``: the
+    network corrects the task's tuned paced rule instead (the residual agent, a labelled variant)."""
 
     paw_filter: bool = False
+    residual: bool = False
 
 
 class FamilyPPO(GradientSettings, FamilyRecipe):
@@ -98,7 +100,7 @@ class EvolutionStrategies(FamilyRecipe):
     """Evolution strategies (:mod:`.evolution`): ``pairs`` antithetic candidate pairs per generation, each
     perturbed by ``noise_std``, all running the same ``seasons`` training seasons. ``backend``: ``numpy`` (the
     published agents' learner, :mod:`.evolution`) or ``jax`` (the same recipe with evosax, a generation in one
-    jitted call: :mod:`.jax_evolution`; no ``paw_filter``)."""
+    jitted call: :mod:`.jax_evolution`; no ``paw_filter``, no ``residual``)."""
 
     pairs: int = Field(ge=1, le=1_000)
     noise_std: float = Field(gt=0, le=10)
@@ -109,6 +111,9 @@ class EvolutionStrategies(FamilyRecipe):
     def _jax_without_filter(self):
         if self.backend == "jax" and self.paw_filter:
             raise ValueError("backend jax has no soil-water filter: train paw_filter agents with backend numpy")
+        if self.backend == "jax" and self.residual:
+            raise ValueError("backend jax has no paced rule inside its rollout: train residual agents with backend "
+                             "numpy")
         return self
 
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from crop_sim_ros.output import output_directory, replace_atomically, write_csv_atomic, write_json_atomic
 
-from ..policies.learned import ACTION_SCALE_MM, AgentInterface, ObservationScaler
+from ..policies.learned import ACTION_SCALE_MM, RESIDUAL_SPAN_MM, AgentInterface, ObservationScaler
 from .training_support import silent_logger, validation_scenario
 
 REWARD_SCALE_USD = 1000.0
@@ -49,6 +49,34 @@ def actor_container(input_size: int, policy_kwargs: dict, seed: int):
     from .agent import network_spaces
     return PPO("MlpPolicy", network_spaces(input_size), policy_kwargs=policy_kwargs, seed=seed, device="cpu",
                verbose=0)
+
+def residual_rule(task: str):
+    """The residual agent's rule: ``task``'s tuned paced rule (UsageError saying how to tune it if it has none)."""
+    from crop_sim_ros.usage import UsageError
+    from ..policies.family_tuning import tuned_rule
+    try:
+        return tuned_rule(task, "paced-rule")
+    except (FileNotFoundError, ValueError) as error:
+        raise UsageError(f"residual=true corrects the task's tuned paced rule: {error}") from None
+
+
+def start_at_rule(policy) -> None:
+    """Zero the actor's last layer (weights and bias): the residual agent's action is 0, the rule's own, for
+    every input until training moves it."""
+    import torch
+    with torch.no_grad():
+        policy.action_net.weight.zero_()
+        policy.action_net.bias.zero_()
+
+
+def action_record(interface: AgentInterface) -> dict:
+    """What the run's ``model.json`` says of the action: its kind and mapping, and the residual's rule."""
+    if interface.rule is None:
+        return {"action_kind": "mm", "action": f"a in [-1, 1] -> (a + 1) / 2 x {ACTION_SCALE_MM:g} mm"}
+    from ..policies.family_tuning import paced_rule_record
+    return {"action_kind": "residual", "residual_rule": paced_rule_record(interface.rule),
+            "action": f"a in [-1, 1] -> clip(paced rule's mm + a x {RESIDUAL_SPAN_MM:g}, 0, {ACTION_SCALE_MM:g}) mm"}
+
 
 def fit_scaler(scenario, seed: int, seasons: int = 64) -> ObservationScaler:
     """Observation statistics over ``seasons`` training seasons under the default water-budget rule."""
@@ -165,7 +193,7 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
     if settings.paw_filter:
         # the sensor's stated error is the task's PAW noise (a farmer knows the probe's specification)
         paw_filter = SoilWaterFilter(FarmFacts.of_scenario(scenario).capacity_mm, scenario.noise.paw_mm)
-    interface = AgentInterface(scaler, paw_filter)
+    interface = AgentInterface(scaler, paw_filter, residual_rule(scenario.name) if settings.residual else None)
     from stable_baselines3 import PPO
     policy_kwargs = {"net_arch": net_arch, "log_std_init": settings.log_std_init if algorithm != "es" else ES_CONTAINER_LOG_STD}
     if algorithm == "ppo":
@@ -178,6 +206,8 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
                     ent_coef=settings.ent_coef, policy_kwargs=policy_kwargs, seed=seed, device="cpu", verbose=0)
     else:  # es, grpo: they run their own seasons
         model = actor_container(interface.input_size, policy_kwargs, seed)
+    if settings.residual:
+        start_at_rule(model.policy)
     model.set_logger(silent_logger())
     validation = validation_scenario(scenario, settings.validation_seasons, seed)
     seasons = np.arange(settings.validation_seasons)
@@ -186,7 +216,7 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
     rule_return = float(run_episodes(default_rule, validation, seasons, seed=1000, terms=terms).episode_return.mean())
     config = {"task": scenario.name, "algorithm": algorithm, "history": 1, "seed": seed,
               "timesteps": settings.timesteps, "training_seasons": scenario.n_seasons, "net_arch": net_arch,
-              "action_kind": "mm", "action": f"a in [-1, 1] -> (a + 1) / 2 x {ACTION_SCALE_MM:g} mm",
+              **action_record(interface),
               **({} if paw_filter is None else {"paw_filter": paw_filter.record()}),
               "scaler": scaler.record(),
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",

@@ -293,6 +293,12 @@ def paced_rule_from_record(record: dict) -> PacedRule:
     return PacedRule(PacedFacts.from_record(record.get("facts")), parameters, name="paced-rule")
 
 
+def paced_rule_record(rule: PacedRule) -> dict:
+    """A paced rule with scalar parameters as :func:`paced_rule_from_record` reads it: ``facts`` and
+    ``parameters``."""
+    return {"facts": rule.facts.record(), "parameters": {k: float(v) for k, v in rule.parameters.items()}}
+
+
 def write_tuned(task: str, result: dict, rule: str = "budget-rule") -> Path:
     """Write :func:`tune_rule`'s ``result`` to :func:`family_file` (an infinite parameter as null)."""
     from crop_sim_ros.output import write_json_atomic

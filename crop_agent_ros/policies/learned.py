@@ -27,9 +27,18 @@ does is one object, :class:`AgentInterface`, used alike by training and by the l
 :class:`~crop_agent_ros.policies.base.BasePolicy` objects once loaded (:class:`LearnedPolicy`): ``reset`` clears
 the memory (and the filter's estimate), ``act`` takes (N, 29) observations.
 
-Research variants of earlier versions (a residual action on the rule, a climate outlook, hidden observation
-columns, a frame history of more than one day) are no longer run: a ``model.json`` that asks for one is refused
-at load in one line (git history keeps their code).
+The **residual agent** (``crop-sim train --task T --algorithm es --hyperparams residual=true``, a labelled
+variant beside the headline agent) puts the task's tuned paced rule
+(:mod:`~crop_agent_ros.policies.paced_rule`, its facts and parameters saved in ``model.json`` as
+``residual_rule``) inside the action: the rule reads every observation and proposes r mm; the network also sees
+r / ``RESIDUAL_SPAN_MM`` as one more input and its action a in [-1, 1] corrects it: irrigation =
+clip(r + a x ``RESIDUAL_SPAN_MM``, 0, ``ACTION_SCALE_MM``) mm. Training starts from a zero last layer (a = 0
+for every input), i.e. at the rule, and the run's checkpoint at step 0 is the rule itself: the validation
+choice (:func:`~crop_agent_ros.learning.train_task.select_model`) keeps the rule where learning found nothing.
+
+Research variants of earlier versions (a residual action on the budget rule, a climate outlook, hidden
+observation columns, a frame history of more than one day) are no longer run: a ``model.json`` that asks for one
+is refused at load in one line (git history keeps their code).
 """
 
 from __future__ import annotations
@@ -41,7 +50,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from crop_sim_ros.task.layout import EXTENDED
 from crop_sim_ros.usage import shown
@@ -49,6 +58,11 @@ from crop_sim_ros.usage import shown
 from .base import BasePolicy
 
 ACTION_SCALE_MM = 25.0  # a = 1 asks 25 mm: above any day's need (ET0 <= ~11 mm/d), below drainage waste
+# The residual's reach: a in [-1, 1] corrects the rule by up to 10 mm either way, enough to cancel any day's
+# rule action (a pivot gives at most 8 mm/d) or add more than a day of the pivot's water, while the
+# perturbations of evolution strategies move the action by a few mm.
+RESIDUAL_SPAN_MM = 10.0
+ACTION_KINDS = ("mm", "residual")
 ALGORITHMS = ("ppo", "recurrent-ppo", "td3", "es", "grpo")
 DAY = EXTENDED.index("days_since_sowing")
 
@@ -69,6 +83,13 @@ def algorithm_class(algorithm: str):
 def action_to_mm(action: np.ndarray) -> np.ndarray:
     """Network actions in [-1, 1] -> irrigation mm in [0, ACTION_SCALE_MM]."""
     return (np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0) + 1.0) * 0.5 * ACTION_SCALE_MM
+
+
+def residual_to_mm(action: np.ndarray, rule_mm: np.ndarray) -> np.ndarray:
+    """Network actions in [-1, 1] as corrections of the rule's ``rule_mm`` (N,): irrigation mm =
+    clip(rule_mm + a x RESIDUAL_SPAN_MM, 0, ACTION_SCALE_MM)."""
+    correction = np.clip(np.asarray(action, dtype=float).reshape(-1), -1.0, 1.0) * RESIDUAL_SPAN_MM
+    return np.clip(np.asarray(rule_mm, dtype=float).reshape(-1) + correction, 0.0, ACTION_SCALE_MM)
 
 
 # Least std of a scaled column (in the column's unit): a constant column scales to 0.
@@ -126,8 +147,10 @@ class AgentConfig(BaseModel):
     """``model.json`` beside a family agent's ``model.zip`` (what :class:`LearnedPolicy` and ``crop-sim evaluate
     --task`` read), validated strictly: types (a number is a number, never a string or a bool), ranges, finite
     values, the scaler's length the observation's. Keys it does not name (a description of the run) are kept
-    unread; those it names must be right. An earlier version's research variant (``action_kind`` residual, an
-    ``outlook``, ``scaler.hidden`` columns, ``history`` above 1) is refused, naming the key."""
+    unread; those it names must be right. ``action_kind`` ``residual`` needs ``residual_rule`` (the paced rule
+    it corrects: ``facts`` and ``parameters``, as in ``family_<task>-paced.json``), and ``mm`` takes none. An
+    earlier version's research variant (a residual on the budget rule, an ``outlook``, ``scaler.hidden``
+    columns, ``history`` above 1) is refused, naming the key."""
 
     model_config = ConfigDict(_STRICT, extra="allow")
 
@@ -135,6 +158,7 @@ class AgentConfig(BaseModel):
     algorithm: Literal[ALGORITHMS]
     history: int = Field(default=1, ge=1)  # days of observations the network sees: 1
     action_kind: str = "mm"
+    residual_rule: dict[str, Any] | None = None
     scaler: ScalerRecord
     seed: int = Field(default=-1, ge=-1, le=2**32 - 1)  # the training seed (-1: not recorded)
     timesteps: int = Field(default=0, ge=0)
@@ -154,12 +178,22 @@ class AgentConfig(BaseModel):
 
     @field_validator("action_kind")
     @classmethod
-    def _action_in_mm(cls, kind: str) -> str:
-        if kind == "residual":
-            raise ValueError(f"the residual action on the rule {REMOVED}")
-        if kind != "mm":
-            raise ValueError("Input should be 'mm'")
+    def _known_action(cls, kind: str) -> str:
+        if kind not in ACTION_KINDS:
+            raise ValueError(f"Input should be {' or '.join(map(repr, ACTION_KINDS))}")
         return kind
+
+    @model_validator(mode="after")
+    def _residual_names_its_rule(self):
+        if self.action_kind == "residual" and self.residual_rule is None:
+            extra = self.model_extra or {}
+            if "rule" in extra:  # what an earlier version's residual on the budget rule wrote
+                raise ValueError(f"action_kind: the residual action on the budget rule {REMOVED}")
+            raise ValueError("action_kind: 'residual' needs residual_rule (the paced rule it corrects, as "
+                             "`crop-sim train --task T --algorithm es --hyperparams residual=true` writes)")
+        if self.action_kind == "mm" and self.residual_rule is not None:
+            raise ValueError("residual_rule: only for action_kind 'residual' (an action in mm corrects no rule)")
+        return self
 
     @field_validator("outlook")
     @classmethod
@@ -214,55 +248,77 @@ class AgentInterface:
     batch: training's environment wrapper and the loaded policy both use it).
 
     ``observe(raw)`` takes the fields' (N, 29) observations of the day, in order, each exactly once: it scales
-    them and updates the ``paw_filter`` (a :class:`~crop_agent_ros.policies.family.SoilWaterFilter`, if any); it
-    returns the network's (N, input_size) input. ``to_mm(action)`` turns the network's action into mm."""
+    them and updates the ``paw_filter`` (a :class:`~crop_agent_ros.policies.family.SoilWaterFilter`, if any); with
+    a ``rule`` (the residual agent's :class:`~crop_agent_ros.policies.paced_rule.PacedRule`) the rule reads them
+    too and proposes today's mm. It returns the network's (N, input_size) input. ``to_mm(action)`` turns the
+    network's action for that day into mm (for the residual: the rule's proposal corrected)."""
 
-    def __init__(self, scaler: ObservationScaler, paw_filter=None):
+    def __init__(self, scaler: ObservationScaler, paw_filter=None, rule=None):
         self.scaler = scaler
         self.paw_filter = paw_filter
+        self.rule = rule
+        self._rule_mm: np.ndarray | None = None
+
+    @property
+    def action_kind(self) -> str:
+        return "mm" if self.rule is None else "residual"
 
     @property
     def input_size(self) -> int:
-        """The 29 scaled values, plus the filter's PAW estimate."""
-        return EXTENDED.size + (self.paw_filter is not None)
+        """The 29 scaled values, plus the filter's PAW estimate, plus the rule's proposal."""
+        return EXTENDED.size + (self.paw_filter is not None) + (self.rule is not None)
 
     def reset(self) -> None:
+        self._rule_mm = None
         if self.paw_filter is not None:
             self.paw_filter.reset()
+        if self.rule is not None:
+            self.rule.reset()
 
     def scaled_estimate(self, paw_mm: np.ndarray) -> np.ndarray:
         """The filter's PAW estimates (N,) mm as the network sees them: (estimate / capacity) x 2 - 1."""
         return np.asarray(paw_mm, dtype=float) / self.paw_filter.capacity_mm * 2.0 - 1.0
 
-    def network_input(self, scaled: np.ndarray, paw_mm: np.ndarray | None) -> np.ndarray:
-        """The network's input: the scaled observations, then the filter's estimate where there is a filter."""
+    def network_input(self, scaled: np.ndarray, paw_mm: np.ndarray | None,
+                      rule_mm: np.ndarray | None = None) -> np.ndarray:
+        """The network's input: the scaled observations, then the filter's estimate where there is a filter, then
+        the rule's proposal / RESIDUAL_SPAN_MM where there is a rule."""
         parts = [scaled]
         if paw_mm is not None:
             parts.append(self.scaled_estimate(paw_mm)[:, None])
+        if rule_mm is not None:
+            parts.append((np.asarray(rule_mm, dtype=float) / RESIDUAL_SPAN_MM)[:, None])
         return np.concatenate(parts, axis=1).astype(np.float32)
 
     def observe(self, raw: np.ndarray, terminal: dict[int, np.ndarray] | None = None):
         """The network's input for the day's raw (N, 29) observations; with ``terminal`` (field -> the last
         observation of a season that just ended, which ``raw`` replaces by the next season's first), also
         returns the input each such last observation would have given (for bootstrapping a truncated season:
-        the filter's estimate from its state before today)."""
+        the filter's estimate and the rule's proposal from their state before today)."""
         raw = np.asarray(raw, dtype=float)
         terminal_inputs = {}
         if terminal:
             rows = sorted(terminal)
             last = raw.copy()
             last[rows] = np.stack([np.asarray(terminal[i], dtype=float).reshape(-1) for i in rows])
-            # a copy of the filter reads the last observations, so the filter sees each observation once
+            # copies of the filter and the rule read the last observations, so each sees an observation once
             paw_last = None if self.paw_filter is None else copy.deepcopy(self.paw_filter).update(last)
+            rule_last = None if self.rule is None else copy.deepcopy(self.rule).act(last)
             for i in rows:
                 terminal_inputs[i] = self.network_input(self.scaler(last[i]),
-                                                        None if paw_last is None else paw_last[[i]])[0]
+                                                        None if paw_last is None else paw_last[[i]],
+                                                        None if rule_last is None else rule_last[[i]])[0]
         paw_mm = None if self.paw_filter is None else self.paw_filter.update(raw)
-        return self.network_input(self.scaler(raw), paw_mm), terminal_inputs
+        self._rule_mm = None if self.rule is None else np.asarray(self.rule.act(raw), dtype=float).reshape(-1)
+        return self.network_input(self.scaler(raw), paw_mm, self._rule_mm), terminal_inputs
 
     def to_mm(self, action: np.ndarray) -> np.ndarray:
         """The network's action for the day last observed -> irrigation mm (N,)."""
-        return action_to_mm(action)
+        if self.rule is None:
+            return action_to_mm(action)
+        if self._rule_mm is None:
+            raise RuntimeError("the residual action corrects the rule's proposal: observe the day first")
+        return residual_to_mm(action, self._rule_mm)
 
 
 class LearnedPolicy(BasePolicy):
@@ -288,8 +344,15 @@ class LearnedPolicy(BasePolicy):
                 paw_filter = SoilWaterFilter(**agent.paw_filter)
             except (TypeError, ValueError) as error:
                 raise ValueError(f"{config_file}: paw_filter {shown(agent.paw_filter)}: {error}") from None
+        rule = None
+        if agent.residual_rule is not None:
+            from .family_tuning import paced_rule_from_record
+            try:
+                rule = paced_rule_from_record(agent.residual_rule)
+            except (TypeError, ValueError) as error:
+                raise ValueError(f"{config_file}: residual_rule: {str(error).splitlines()[0]}") from None
         scaler = ObservationScaler(tuple(agent.scaler.mean), tuple(agent.scaler.std))
-        self.interface = AgentInterface(scaler, paw_filter)
+        self.interface = AgentInterface(scaler, paw_filter, rule)
         self.model = algorithm_class(self.algorithm).load(str(self.path), device="cpu")
         expected = (self.interface.input_size,)
         if self.model.observation_space.shape != expected or self.model.action_space.shape != (1,):
@@ -317,5 +380,6 @@ class LearnedPolicy(BasePolicy):
 
     def describe(self):
         return {"name": self.name, "path": str(self.path), "algorithm": self.algorithm,
+                "action_kind": self.interface.action_kind,
                 "paw_filter": None if self.interface.paw_filter is None else self.interface.paw_filter.record(),
                 "trained_on": self.config.get("task")}
