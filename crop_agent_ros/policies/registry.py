@@ -14,6 +14,8 @@ name            what it is                                                      
 ``budget-rule`` the water-budget rule tuned for a family task                         ``task``             yes
 ``paced-rule``  the paced rule tuned for a family task (issue 33)                     ``task``             yes
 ``es``          the shipped evolution-strategies agent of a family task               ``task``             yes
+``es-residual`` the shipped residual agent of a family task (ES correcting the paced  ``task``             yes
+                rule)
 ``agent``       a family agent trained by ``crop-sim train --task``                   ``policy_file``      yes
 =============== ===================================================================== ==================== ====
 
@@ -21,7 +23,7 @@ name            what it is                                                      
 simulator's scenario when the agent node is not given one.
 
 Shipped agents are package data, ``crop_agent_ros/agents/<task>/<policy>/model.zip`` (+ ``model.json``): the
-policy name (``es``) resolves to the agent of the current task (:func:`shipped_agent_file`); a task without one
+policy name (``es``, ``es-residual``) resolves to the agent of the current task (:func:`shipped_agent_file`); a task without one
 is refused in one line naming the tasks that have one (:func:`shipped_agent_tasks`). Short names for evaluation
 (:func:`make_policy`): a name above, ``constant<mm>`` and ``margin<mm>`` (e.g. ``constant10``, ``margin4``) and
 ``ppo:<path.zip>``. Heavy libraries (torch, stable_baselines3) load only when a learned policy is built.
@@ -98,7 +100,7 @@ def _agent(arguments: PolicyArguments) -> BasePolicy:
 
 # crop_agent_ros/agents/<task>/<policy name>/model.zip (+ model.json): the shipped agents (package data)
 AGENTS_DIR = Path(__file__).resolve().parents[1] / "agents"
-SHIPPED_POLICIES = ("es",)  # the policy names that resolve to a shipped agent of the task
+SHIPPED_POLICIES = ("es", "es-residual")  # the policy names that resolve to a shipped agent of the task
 
 
 def shipped_agent_tasks(policy: str) -> list[str]:
@@ -116,11 +118,14 @@ def shipped_agent_file(policy: str, task: str) -> Path:
     return path
 
 
-def _es(arguments: PolicyArguments) -> BasePolicy:
-    if not arguments.task:
-        raise ValueError("policy es needs a family task (task:=, --task)")
-    from .learned import LearnedPolicy
-    return LearnedPolicy(shipped_agent_file("es", arguments.task), name="es")
+def _shipped(policy: str) -> Callable[[PolicyArguments], BasePolicy]:
+    """The builder of the shipped agent named ``policy`` (one of SHIPPED_POLICIES) for the arguments' task."""
+    def build(arguments: PolicyArguments) -> BasePolicy:
+        if not arguments.task:
+            raise ValueError(f"policy {policy} needs a family task (task:=, --task)")
+        from .learned import LearnedPolicy
+        return LearnedPolicy(shipped_agent_file(policy, arguments.task), name=policy)
+    return build
 
 
 def _zero(arguments: PolicyArguments) -> BasePolicy:
@@ -148,7 +153,9 @@ POLICY_KINDS: dict[str, PolicyKind] = {kind.name: kind for kind in (
     PolicyKind("oracle", "the hindsight oracle (evaluation only)", _oracle, node=False),
     PolicyKind("budget-rule", "the water-budget rule tuned for a family task", _budget_rule, reads_task=True),
     PolicyKind("paced-rule", "the paced rule tuned for a family task", _paced_rule, reads_task=True),
-    PolicyKind("es", "the shipped evolution-strategies agent of a family task", _es, reads_task=True),
+    PolicyKind("es", "the shipped evolution-strategies agent of a family task", _shipped("es"), reads_task=True),
+    PolicyKind("es-residual", "the shipped residual agent of a family task (ES correcting the paced rule)",
+               _shipped("es-residual"), reads_task=True),
     PolicyKind("agent", "a family agent's policy file", _agent),
 )}
 NODE_POLICIES = tuple(name for name, kind in POLICY_KINDS.items() if kind.node)
