@@ -9,7 +9,7 @@ Showed: on the late-sown held-out climate (maricopa-late-generated) ES irrigates
 The set's first ``--seasons`` seasons: ``crop-sim evaluate``'s set with its weather and the terms of its position
 in the whole protocol (``--far-seasons``, ``--far-seed`` and ``--terms-seed`` as there: a generated pool's first
 seasons depend on its size), noise seed 0; the hindsight oracle, the
-task's tuned rule and each ``--agent`` (a run directory with ``model.zip``). Prints one row per policy: mean
+task's tuned rule (``rule``: the budget rule; ``paced-rule`` where the task has one) and each ``--agent`` (a run directory with ``model.zip``). Prints one row per policy: mean
 return (USD/ha), water (mm), dry yield (t/ha) and days to the season's end, then the mean irrigation (mm) in
 each period of ``--period-days`` days after sowing and the mean true plant-available water (mm) over it. How the
 late-sown held-out climate's failure was read (docs/findings.md).
@@ -62,6 +62,8 @@ def timings(task_name: str, set_name: str, agents: dict[str, Path], seasons: int
     chosen = replace(chosen, seasons=chosen.seasons[:seasons])
     terms = {name: values[:len(chosen.seasons)] for name, values in all_terms.items()}
     policies = {"oracle": FamilyOraclePolicy.for_scenario(chosen.scenario), "rule": family_tuning.tuned_rule(task_name)}
+    if family_tuning.family_file(task_name, "paced-rule").exists():
+        policies["paced-rule"] = family_tuning.tuned_rule(task_name, "paced-rule")
     for name, directory in agents.items():
         policies[name] = LearnedPolicy(Path(directory) / "model.zip", name=name)
     result = []
@@ -87,7 +89,7 @@ def _agents(specs: list[str]) -> dict[str, Path]:
             raise UsageError(f"--agent {spec!r}: give NAME=RUN_DIRECTORY")
         if not (Path(directory) / "model.zip").is_file():
             raise UsageError(f"--agent {name}: {directory}/model.zip does not exist")
-        if name in agents or name in ("oracle", "rule"):
+        if name in agents or name in ("oracle", "rule", "paced-rule"):
             raise UsageError(f"--agent {name}: the name is taken")
         agents[name] = Path(directory)
     return agents

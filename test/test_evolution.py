@@ -96,7 +96,7 @@ def test_a_tiny_es_run_improves_reproduces_and_loads_as_a_family_agent(tmp_path)
     assert config["algorithm"] == "es" and summary["steps_run"] >= 120_000
     assert config["hyper_parameters"] == {"timesteps": 120_000, "eval_freq": 40_000, "validation_seasons": 2,
                                           "net_arch": [16], "learning_rate": 0.02, "final_learning_rate": 0.002,
-                                          "paw_filter": False, "residual": False, "pairs": 3, "noise_std": 0.3, "seasons": 3,
+                                          "paw_filter": False, "residual": False, "weather_inputs": True, "pairs": 3, "noise_std": 0.3, "seasons": 3,
                                           "backend": "numpy"}
     import csv
     with open(out / "learning_curve.csv", newline="") as f:

@@ -90,3 +90,26 @@ def test_what_a_residual_cannot_do_is_refused_in_one_line(tmp_path, residual_run
     with pytest.raises(ValueError, match=r"model\.json: residual_rule: parameter pace must be a finite number") as e:
         LearnedPolicy(broken / "model.zip")
     assert "\n" not in str(e.value)
+
+
+def test_without_weather_inputs_the_network_sees_the_climate_columns_at_their_training_mean(tmp_path):
+    from crop_agent_ros.policies.learned import CLIMATE_COLUMNS
+    out = tmp_path / "blind"
+    tiny_task_training(out, "benton-quota", 2, "es", timesteps=20_000, net_arch=(8,), eval_freq=10_000,
+                       residual=True, weather_inputs=False)
+    config = json.loads((out / "model.json").read_text())
+    assert config["weather_inputs"] is False and config["hyper_parameters"]["weather_inputs"] is False
+    policy = LearnedPolicy(out / "model.zip")
+    assert policy.describe()["weather_inputs"] is False
+    from crop_sim_ros.task import IrrigationVectorEnv
+    obs, _ = IrrigationVectorEnv(4, "benton-quota").reset(seed=3)
+    policy.reset()
+    inputs, _ = policy.interface.observe(obs)
+    blind = [EXTENDED.index(name) for name in CLIMATE_COLUMNS]
+    seen = [i for i in range(EXTENDED.size) if i not in blind]
+    assert np.all(inputs[:, blind] == 0.0)
+    np.testing.assert_allclose(inputs[:, seen], policy.interface.scaler(obs)[:, seen])
+    assert {"rain_mm", "forecast_rain_mm"}.isdisjoint(CLIMATE_COLUMNS) and "et0_mm" in CLIMATE_COLUMNS
+    from crop_sim_ros.usage import UsageError
+    with pytest.raises(UsageError, match="backend jax sees every observed value"):
+        tiny_task_training(tmp_path / "j", "benton-quota", 0, "es", weather_inputs=False, backend="jax")

@@ -1,6 +1,6 @@
 """The shipped agents (package data under crop_agent_ros/agents/<task>/<policy>/): loaded by the policy name
-``es`` for the current task, acting on that task's observation; a task without one refused in one line; the
-policies package runs them without importing training."""
+(``es``, ``es-residual``) for the current task, acting on that task's observation; a task without one refused in
+one line; the policies package runs them without importing training."""
 
 from __future__ import annotations
 
@@ -25,28 +25,37 @@ EXPECTED_ES_TASKS = ["benton-quota", "benton-sensing", "climates-hot-quota", "cl
                      "climates-spread-quota", "climates10-quota", "climates12-quota", "climates3-quota",
                      "climates4-quota", "climates6-quota", "climates8-quota", "maricopa-late-quota",
                      "maricopa-sown-spread-quota"]
+# the tasks with a tuned paced rule, whose residual agent (ES correcting that rule) is shipped
+EXPECTED_RESIDUAL_TASKS = ["benton-quota", "benton-sensing", "climates-quota"]
+SHIPPED = [("es", task) for task in EXPECTED_ES_TASKS] + [("es-residual", task) for task in EXPECTED_RESIDUAL_TASKS]
 
 
 def test_the_shipped_agents_are_one_small_final_policy_per_task():
-    assert SHIPPED_POLICIES == ("es",) and ES_TASKS == EXPECTED_ES_TASKS
-    for task in ES_TASKS:
-        folder = AGENTS_DIR / task / "es"
+    assert SHIPPED_POLICIES == ("es", "es-residual") and ES_TASKS == EXPECTED_ES_TASKS
+    assert shipped_agent_tasks("es-residual") == EXPECTED_RESIDUAL_TASKS
+    for policy, task in SHIPPED:
+        folder = AGENTS_DIR / task / policy
         assert sorted(p.name for p in folder.iterdir()) == ["model.json", "model.zip"], task  # no early model, curve
         config = json.loads((folder / "model.json").read_text())
         assert (config["task"], config["algorithm"], config["seed"]) == (task, "es", 0)
         assert get_scenario(task).is_family_task
         assert sum(p.stat().st_size for p in folder.iterdir()) < 200_000
+        if policy == "es-residual":  # it corrects the paced rule shipped for its task, exactly
+            from crop_agent_ros.policies.family_tuning import paced_rule_record, tuned_rule
+            assert config["action_kind"] == "residual"
+            assert config["residual_rule"] == json.loads(json.dumps(paced_rule_record(tuned_rule(task, "paced-rule"))))
 
 
 @pytest.mark.usefixtures("shared_data")
-@pytest.mark.parametrize("task", EXPECTED_ES_TASKS)
-def test_policy_es_loads_the_shipped_agent_of_the_task_and_grows_its_season(task):
+@pytest.mark.parametrize("policy, task", SHIPPED)
+def test_a_shipped_policy_loads_the_agent_of_the_task_and_grows_its_season(policy, task):
     """The agent of ``task`` on the task's observation (its terms, quota and noise; the weather of the real
     Benton 2000 season, so that no pool of generated seasons is built): it irrigates within its action's range
     and the quota, and the crop matures."""
-    policy = build_policy("es", PolicyArguments(task=task), node=True)
-    assert isinstance(policy, LearnedPolicy) and policy.name == "es"
-    assert policy.describe()["trained_on"] == task and policy.path == shipped_agent_file("es", task)
+    name = policy
+    policy = build_policy(name, PolicyArguments(task=task), node=True)
+    assert isinstance(policy, LearnedPolicy) and policy.name == name
+    assert policy.describe()["trained_on"] == task and policy.path == shipped_agent_file(name, task)
     env = IrrigationEnv(with_weather_of(get_scenario(task), get_scenario("benton-2000")))
     obs, info = env.reset(seed=0)
     assert obs.shape == (EXTENDED.size,)
@@ -73,6 +82,10 @@ def test_policy_es_refuses_a_task_without_a_shipped_agent_naming_those_with_one(
                                       f"{', '.join(EXPECTED_ES_TASKS)}")
     with pytest.raises(ValueError, match=r"^policy es needs a family task \(task:=, --task\)$"):
         build_policy("es", PolicyArguments())
+    with pytest.raises(ValueError) as refused:
+        build_policy("es-residual", PolicyArguments(task="climates12-quota"))
+    assert str(refused.value) == ("policy es-residual: no shipped agent for task 'climates12-quota'; tasks with one: "
+                                  f"{', '.join(EXPECTED_RESIDUAL_TASKS)}")
 
 
 def test_farm_refuses_a_task_without_a_shipped_agent_in_one_line(tmp_path):
@@ -101,5 +114,5 @@ def test_the_shipped_files_are_package_data():
     setup = (REPO / "setup.py").read_text()
     patterns = [p for p in ("agents/*/*/model.zip", "agents/*/*/model.json") if f'"{p}"' in setup]
     files = [p.relative_to(REPO / "crop_agent_ros").as_posix() for p in AGENTS_DIR.rglob("*") if p.is_file()]
-    assert len(files) == 2 * len(ES_TASKS)
+    assert len(files) == 2 * len(SHIPPED)
     assert all(any(fnmatch(f, pattern) for pattern in patterns) for f in files), (patterns, files)

@@ -86,10 +86,12 @@ class PaperPPO(GradientSettings, Recipe):
 class FamilyRecipe(Recipe):
     """A family task's agent: the normalised raw observation, action in mm (:mod:`.agent`); ``paw_filter``: the
     network also sees a soil-water filter's PAW estimate (the sensor's stated error known); ``residual``: the
-    network corrects the task's tuned paced rule instead (the residual agent, a labelled variant)."""
+    network corrects the task's tuned paced rule instead (the residual agent); ``weather_inputs`` false: the
+    network sees the climate's columns (temperatures, radiation, humidity, wind, ET0) at their training mean."""
 
     paw_filter: bool = False
     residual: bool = False
+    weather_inputs: bool = True
 
 
 class FamilyPPO(GradientSettings, FamilyRecipe):
@@ -100,7 +102,7 @@ class EvolutionStrategies(FamilyRecipe):
     """Evolution strategies (:mod:`.evolution`): ``pairs`` antithetic candidate pairs per generation, each
     perturbed by ``noise_std``, all running the same ``seasons`` training seasons. ``backend``: ``numpy`` (the
     published agents' learner, :mod:`.evolution`) or ``jax`` (the same recipe with evosax, a generation in one
-    jitted call: :mod:`.jax_evolution`; no ``paw_filter``, no ``residual``)."""
+    jitted call: :mod:`.jax_evolution`; no ``paw_filter``, no ``residual``, every weather input)."""
 
     pairs: int = Field(ge=1, le=1_000)
     noise_std: float = Field(gt=0, le=10)
@@ -111,6 +113,9 @@ class EvolutionStrategies(FamilyRecipe):
     def _jax_without_filter(self):
         if self.backend == "jax" and self.paw_filter:
             raise ValueError("backend jax has no soil-water filter: train paw_filter agents with backend numpy")
+        if self.backend == "jax" and not self.weather_inputs:
+            raise ValueError("backend jax sees every observed value: train weather_inputs=false agents with backend "
+                             "numpy")
         if self.backend == "jax" and self.residual:
             raise ValueError("backend jax has no paced rule inside its rollout: train residual agents with backend "
                              "numpy")

@@ -65,8 +65,8 @@ class PopulationRollout:
     fields). Build it and call it under ``jax.enable_x64(True)`` for float64."""
 
     def __init__(self, scenario, interface: AgentInterface, actor: ActorVector):
-        if interface.paw_filter is not None or interface.rule is not None:
-            raise ValueError("the JAX rollout has no soil-water filter and no paced rule")
+        if interface.paw_filter is not None or interface.rule is not None or not interface.weather_inputs:
+            raise ValueError("the JAX rollout has no soil-water filter and no paced rule, and sees every input")
         self.env = JaxIrrigationEnv(scenario, table=core.scenario_table(scenario))
         self.params = self.env.default_params
         self.actor = actor

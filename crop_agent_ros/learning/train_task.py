@@ -193,7 +193,8 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
     if settings.paw_filter:
         # the sensor's stated error is the task's PAW noise (a farmer knows the probe's specification)
         paw_filter = SoilWaterFilter(FarmFacts.of_scenario(scenario).capacity_mm, scenario.noise.paw_mm)
-    interface = AgentInterface(scaler, paw_filter, residual_rule(scenario.name) if settings.residual else None)
+    interface = AgentInterface(scaler, paw_filter, residual_rule(scenario.name) if settings.residual else None,
+                               settings.weather_inputs)
     from stable_baselines3 import PPO
     policy_kwargs = {"net_arch": net_arch, "log_std_init": settings.log_std_init if algorithm != "es" else ES_CONTAINER_LOG_STD}
     if algorithm == "ppo":
@@ -216,7 +217,7 @@ def train_task(scenario, algorithm: str, seed: int, out: Path, settings, progres
     rule_return = float(run_episodes(default_rule, validation, seasons, seed=1000, terms=terms).episode_return.mean())
     config = {"task": scenario.name, "algorithm": algorithm, "history": 1, "seed": seed,
               "timesteps": settings.timesteps, "training_seasons": scenario.n_seasons, "net_arch": net_arch,
-              **action_record(interface),
+              **action_record(interface), "weather_inputs": interface.weather_inputs,
               **({} if paw_filter is None else {"paw_filter": paw_filter.record()}),
               "scaler": scaler.record(),
               "reward": f"task reward USD/ha / {REWARD_SCALE_USD:g} + potential shaping (value of the yield so far)",

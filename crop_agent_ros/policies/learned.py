@@ -63,6 +63,13 @@ ACTION_SCALE_MM = 25.0  # a = 1 asks 25 mm: above any day's need (ET0 <= ~11 mm/
 # perturbations of evolution strategies move the action by a few mm.
 RESIDUAL_SPAN_MM = 10.0
 ACTION_KINDS = ("mm", "residual")
+# The columns of the day's weather that say which climate a field is in: temperatures, radiation, humidity,
+# wind and ET0, today's and forecast. An agent trained with ``weather_inputs`` false sees them at their training
+# mean (0 once scaled): a correction keyed on one site's weather has no evidence behind it in another climate.
+# Rain (today's and forecast) stays: it is water, not climate.
+CLIMATE_COLUMNS = ("tmax_degc", "tmin_degc", "tavg_degc", "srad_mj_m2", "vap_hpa", "wind_m_s", "et0_mm",
+                   "forecast_tmax_degc", "forecast_tmin_degc", "forecast_tavg_degc", "forecast_srad_mj_m2",
+                   "forecast_vap_hpa", "forecast_wind_m_s")
 ALGORITHMS = ("ppo", "recurrent-ppo", "td3", "es", "grpo")
 DAY = EXTENDED.index("days_since_sowing")
 
@@ -159,6 +166,7 @@ class AgentConfig(BaseModel):
     history: int = Field(default=1, ge=1)  # days of observations the network sees: 1
     action_kind: str = "mm"
     residual_rule: dict[str, Any] | None = None
+    weather_inputs: bool = True  # False: the network sees CLIMATE_COLUMNS at their training mean
     scaler: ScalerRecord
     seed: int = Field(default=-1, ge=-1, le=2**32 - 1)  # the training seed (-1: not recorded)
     timesteps: int = Field(default=0, ge=0)
@@ -253,11 +261,20 @@ class AgentInterface:
     too and proposes today's mm. It returns the network's (N, input_size) input. ``to_mm(action)`` turns the
     network's action for that day into mm (for the residual: the rule's proposal corrected)."""
 
-    def __init__(self, scaler: ObservationScaler, paw_filter=None, rule=None):
+    def __init__(self, scaler: ObservationScaler, paw_filter=None, rule=None, weather_inputs: bool = True):
         self.scaler = scaler
         self.paw_filter = paw_filter
         self.rule = rule
+        self.weather_inputs = bool(weather_inputs)
+        self._blind = [] if self.weather_inputs else [EXTENDED.index(name) for name in CLIMATE_COLUMNS]
         self._rule_mm: np.ndarray | None = None
+
+    def scaled(self, raw: np.ndarray) -> np.ndarray:
+        """The scaled observations the network sees (without ``weather_inputs``: CLIMATE_COLUMNS at 0, their
+        training mean)."""
+        scaled = self.scaler(raw)
+        scaled[:, self._blind] = 0.0
+        return scaled
 
     @property
     def action_kind(self) -> str:
@@ -305,12 +322,12 @@ class AgentInterface:
             paw_last = None if self.paw_filter is None else copy.deepcopy(self.paw_filter).update(last)
             rule_last = None if self.rule is None else copy.deepcopy(self.rule).act(last)
             for i in rows:
-                terminal_inputs[i] = self.network_input(self.scaler(last[i]),
+                terminal_inputs[i] = self.network_input(self.scaled(last[i]),
                                                         None if paw_last is None else paw_last[[i]],
                                                         None if rule_last is None else rule_last[[i]])[0]
         paw_mm = None if self.paw_filter is None else self.paw_filter.update(raw)
         self._rule_mm = None if self.rule is None else np.asarray(self.rule.act(raw), dtype=float).reshape(-1)
-        return self.network_input(self.scaler(raw), paw_mm, self._rule_mm), terminal_inputs
+        return self.network_input(self.scaled(raw), paw_mm, self._rule_mm), terminal_inputs
 
     def to_mm(self, action: np.ndarray) -> np.ndarray:
         """The network's action for the day last observed -> irrigation mm (N,)."""
@@ -352,7 +369,7 @@ class LearnedPolicy(BasePolicy):
             except (TypeError, ValueError) as error:
                 raise ValueError(f"{config_file}: residual_rule: {str(error).splitlines()[0]}") from None
         scaler = ObservationScaler(tuple(agent.scaler.mean), tuple(agent.scaler.std))
-        self.interface = AgentInterface(scaler, paw_filter, rule)
+        self.interface = AgentInterface(scaler, paw_filter, rule, agent.weather_inputs)
         self.model = algorithm_class(self.algorithm).load(str(self.path), device="cpu")
         expected = (self.interface.input_size,)
         if self.model.observation_space.shape != expected or self.model.action_space.shape != (1,):
@@ -380,6 +397,6 @@ class LearnedPolicy(BasePolicy):
 
     def describe(self):
         return {"name": self.name, "path": str(self.path), "algorithm": self.algorithm,
-                "action_kind": self.interface.action_kind,
+                "action_kind": self.interface.action_kind, "weather_inputs": self.interface.weather_inputs,
                 "paw_filter": None if self.interface.paw_filter is None else self.interface.paw_filter.record(),
                 "trained_on": self.config.get("task")}
