@@ -4,7 +4,9 @@ group-relative advantages (:mod:`.grpo`), on the task's training seasons (genera
 real seasons and the held-out climate are never seen). The settings are the recipe of :mod:`.hyperparameters`.
 
 The network's observation and action are those of :mod:`crop_agent_ros.policies.learned` (normalised raw
-observation, action in mm; ``paw_filter``: also a soil-water filter's PAW estimate). Training reward of PPO:
+observation, action in mm; ``paw_filter``: also a soil-water filter's PAW estimate; ``residual``: the action
+corrects the task's tuned paced rule, whose proposal the network also sees, and training starts at the rule
+(:func:`start_at_rule`); ``weather_inputs`` false: the climate's columns at their training mean). Training reward of PPO:
 the task's reward (USD/ha) divided by ``REWARD_SCALE_USD`` and shaped by a potential (Ng et al. 1999),
 Phi(s) = the value of the yield the crop would give if harvested now (tuber price / dry-matter fraction x
 harvest index x true biomass), 0 at the season's end: the yield paid at harvest is spread over the days that
