@@ -114,20 +114,22 @@ def test_run_farm_grows_a_family_season_with_an_agent_file(tmp_path):
     assert any(float(r["obs_paw_observed"]) == 0.0 for r in rows)  # the agent met missing readings
 
 
-def test_farm_grows_a_season_with_the_shipped_agent_of_the_task_as_offline(tmp_path):
-    """`crop-sim farm --task benton-quota --policy es --seasons 1`: the agent node resolves ``es`` to the shipped
-    agent of the simulator's task and irrigates exactly as that agent does offline on the same season."""
+@pytest.mark.parametrize("name", ["es", "es-residual"])
+def test_farm_grows_a_season_with_the_shipped_agent_of_the_task_as_offline(tmp_path, name):
+    """`crop-sim farm --task benton-quota --policy es --seasons 1`: the agent node resolves ``es`` (and
+    ``es-residual``, the paced rule inside it) to the shipped agent of the simulator's task and irrigates exactly as
+    that agent does offline on the same season."""
     from crop_agent_ros.policies import PolicyArguments, build_policy
     from crop_sim_ros.task import IrrigationEnv
 
-    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--task", "benton-quota", "--policy", "es",
+    done = subprocess.run([sys.executable, "-m", "crop_agent_ros.ros.farm", "--task", "benton-quota", "--policy", name,
                            "--seasons", "1", "--json", "--no-plot",
                            "--domain-id", str(isolated_ros_env()["ROS_DOMAIN_ID"])],
                           env=isolated_ros_env(), capture_output=True, text=True, timeout=300, cwd=ros_support.REPO)
     assert done.returncode == 0, done.stdout + done.stderr
     (summary,) = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
-    assert (summary["policy"], summary["scenario"], summary["reward_unit"]) == ("es", "benton-quota", "USD/ha")
-    policy = build_policy("es", PolicyArguments(task="benton-quota"))
+    assert (summary["policy"], summary["scenario"], summary["reward_unit"]) == (name, "benton-quota", "USD/ha")
+    policy = build_policy(name, PolicyArguments(task="benton-quota"))
     env = IrrigationEnv("benton-quota")
     policy.reset(None)
     obs, info = env.reset(seed=0)
