@@ -27,8 +27,8 @@ does is one object, :class:`AgentInterface`, used alike by training and by the l
 :class:`~crop_agent_ros.policies.base.BasePolicy` objects once loaded (:class:`LearnedPolicy`): ``reset`` clears
 the memory (and the filter's estimate), ``act`` takes (N, 29) observations.
 
-The **residual agent** (``crop-sim train --task T --algorithm es --hyperparams residual=true``, a labelled
-variant beside the headline agent) puts the task's tuned paced rule
+The **residual agent** (``crop-sim train --task T --algorithm es --hyperparams residual=true``; shipped as
+``es-residual``, evaluated beside the headline agent) puts the task's tuned paced rule
 (:mod:`~crop_agent_ros.policies.paced_rule`, its facts and parameters saved in ``model.json`` as
 ``residual_rule``) inside the action: the rule reads every observation and proposes r mm; the network also sees
 r / ``RESIDUAL_SPAN_MM`` as one more input and its action a in [-1, 1] corrects it: irrigation =
