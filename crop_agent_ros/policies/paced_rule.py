@@ -74,12 +74,10 @@ rise_weight           1          how far the window's level follows the rising c
 
 The tuned parameters of each task live in ``family_<task>-paced.json`` beside this module, written by
 ``crop-sim tune-rule --task TASK --rule paced-rule`` (:mod:`crop_agent_ros.policies.family_tuning`) from
-generated training seasons only; the shipped benton-quota, benton-sensing and climates-quota files with
-``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds), the
-Benton tasks' with ``--space canopy`` (:data:`~crop_agent_ros.policies.family_tuning.PACED_SPACES`);
-climates12-quota's with a shorter search (``--space canopy --seasons 0..49 --candidates 256 --rounds 6``), for
-its residual agent. The
-rule is tuned on its task's training climates only: on a held-out climate (Maricopa for the Benton tasks) its
+generated training seasons only; the shipped benton-quota, benton-sensing, climates-quota and climates12-quota
+files with ``--candidates 512 --rounds 10`` (the default 128 x 4 search stops well short of the best it finds),
+all but climates-quota's with ``--space canopy`` (:data:`~crop_agent_ros.policies.family_tuning.PACED_SPACES`).
+The rule is tuned on its task's training climates only: on a held-out climate (Maricopa for the Benton tasks) its
 parameters are a transfer test.
 """
 
