@@ -13,7 +13,7 @@ import yaml
 
 from crop_agent_ros import leaderboard as lb
 from crop_agent_ros.cli import main
-from crop_agent_ros.learning.summary import dumps, seed_command, summary, write_summary
+from crop_agent_ros.learning.summary import PLANNER_KIND, dumps, seed_command, summary, write_summary
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -289,12 +289,20 @@ def test_the_committed_page_and_readme_block_are_what_the_command_writes():
             "README.md's leaderboard block is out of date: run crop-sim leaderboard"
 
 
+SUMMARY_MAX_BYTES = 40_000
+PLANNER_BYTES_PER_SEASON = 40  # a planner summary keeps each season's oracle return and regret, unrounded, to re-pair
+
+
 def test_every_committed_summary_is_small_and_has_a_row(tmp_path):
     summaries = sorted((ROOT / lb.SUMMARIES).glob("*.json"))
     assert summaries
     page = (ROOT / lb.PAGE).read_text(encoding="utf-8")
     for path in summaries:
-        assert path.stat().st_size < 40_000, path.name
+        content = json.loads(path.read_text(encoding="utf-8"))
+        limit = SUMMARY_MAX_BYTES
+        if content.get("kind") == PLANNER_KIND:
+            limit += PLANNER_BYTES_PER_SEASON * sum(s["seasons"] for s in content["sets"])
+        assert path.stat().st_size < limit, (path.name, limit)
         assert f"| {path.stem} |" in page or f"| **{path.stem}** |" in page, path.name
 
 
